@@ -26,19 +26,15 @@ import warnings  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from calib import (  # noqa: E402
-    Measurement,
-    analyze,
+from calib import Measurement, analyze, from_chain, from_tree, load_chain  # noqa: E402
+from calib.identification.identifiability import (  # noqa: E402
     analyze_model,
-    from_chain,
-    from_lines,
-    from_tree,
-    identification_jacobian,
-    load_chain,
-    load_tree,
-    paper_parameters,
+    identify_base,
 )
-from calib.identification.identifiability import identify_base  # noqa: E402
+from calib.identification.jacobian import identification_jacobian  # noqa: E402
+from calib.identification.parameters import paper_parameters  # noqa: E402
+from calib.kinematics.mdh import from_lines  # noqa: E402
+from calib.kinematics.tree import load_tree  # noqa: E402
 
 warnings.simplefilter("ignore")
 

@@ -34,6 +34,7 @@ import calib  # noqa: E402
 from calib import calibrate, load_chain, load_robot, read_measurements  # noqa: E402
 from calib.measurements.contact_campaign import read_contacts  # noqa: E402
 from calib.measurements.csvfile import Columns  # noqa: E402
+from calib.measurements.tree_campaign import simulate_tree  # noqa: E402
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "realdata"
 STAGES = ("registration", "selection", "fit", "validation")
@@ -59,7 +60,7 @@ def main() -> None:
     hands = load_robot(
         "talos", "base_link", ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"]
     )
-    seen = calib.simulate_tree(hands, 30, markers=[0.05, 0.02, 0.1], noise_mm=0.05, seed=1)
+    seen = simulate_tree(hands, 30, markers=[0.05, 0.02, 0.1], noise_mm=0.05, seed=1)
     spent: dict[str, list[float]] = {}
 
     def run():

@@ -51,6 +51,7 @@ def dump(root: Path, out: Path) -> None:
     from calib import calibrate, load_chain, load_robot, read_measurements
     from calib.measurements.contact_campaign import read_contacts
     from calib.measurements.csvfile import Columns
+    from calib.measurements.tree_campaign import simulate_tree
 
     if not Path(calib.__file__).is_relative_to(root):
         sys.exit(f"calib imported from {calib.__file__}, not from {root}")
@@ -65,7 +66,7 @@ def dump(root: Path, out: Path) -> None:
     touches = read_contacts(data / "talos_contact" / "left_train.csv", talos, "plane")
     tools = ["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"]
     hands = load_robot("talos", "base_link", tools)
-    seen = calib.simulate_tree(hands, 30, markers=[0.05, 0.02, 0.1], noise_mm=0.05, seed=1)
+    seen = simulate_tree(hands, 30, markers=[0.05, 0.02, 0.1], noise_mm=0.05, seed=1)
     ur10 = load_chain(data / "ur10" / "ur10_robot.urdf", "universe", "wrist_3_link")
     ur10_data = read_measurements(data / "ur10" / "calibration.csv", ur10)
     marker = (0, 0, -0.12)

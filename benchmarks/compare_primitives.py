@@ -36,16 +36,16 @@ import calib  # noqa: E402
 from calib import (  # noqa: E402
     Measurement,
     analyze,
-    analyze_model,
     calibrate,
     from_chain,
     from_tree,
-    identification_jacobian,
     load_chain,
-    load_tree,
     read_measurements,
 )
+from calib.identification.identifiability import analyze_model  # noqa: E402
+from calib.identification.jacobian import identification_jacobian  # noqa: E402
 from calib.identification.parameters import complete_parameters  # noqa: E402
+from calib.kinematics.tree import load_tree  # noqa: E402
 
 TIAGO = Path(__file__).resolve().parent.parent / "data" / "realdata" / "tiago"
 

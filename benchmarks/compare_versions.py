@@ -31,15 +31,17 @@ from calib import (  # noqa: E402
     Columns,
     Measurement,
     analyze,
-    analyze_model,
     calibrate,
     from_chain,
-    identification_jacobian,
     load_chain,
-    paper_parameters,
     read_measurements,
 )
-from calib.identification.identifiability import identify_base  # noqa: E402
+from calib.identification.identifiability import (  # noqa: E402
+    analyze_model,
+    identify_base,
+)
+from calib.identification.jacobian import identification_jacobian  # noqa: E402
+from calib.identification.parameters import paper_parameters  # noqa: E402
 
 TIAGO = Path(__file__).resolve().parent.parent / "data" / "realdata" / "tiago"
 

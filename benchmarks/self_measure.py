@@ -13,9 +13,9 @@ of the three chains and the head camera's placement ``rgbd_optical_joint`` moved
   (``MARKER`` in ``gripper_left_base_link``), 40 configurations (:func:`calib.simulate` on
   the true chain), position noise ``NOISE_MM`` per axis.
 
-Fitted by :func:`calib.calibrate_contact_chains` (``auto`` and ``complete``, 25 % held out,
-seed 0): the arms alone, the camera alone, and all three terms together. Printed: each term's
-held-out RMS (height [mm] / roll / pitch [deg] for a plane; x / y / z [mm] for the camera)
+Fitted by :func:`calib.calibration.engine.calibrate_contact_chains` (``auto`` and ``complete``, 25 %
+held out, seed 0): the arms alone, the camera alone, and all three terms together. Printed: each
+term's held-out RMS (height [mm] / roll / pitch [deg] for a plane; x / y / z [mm] for the camera)
 against its registration's, then the noise-free round trip (largest held-out error of every
 term), and the median time of the joint fit (5 runs, CPU of this process and wall clock).
 """
@@ -27,7 +27,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from calib import calibrate_contact_chains, load_robot, simulate
+from calib import load_robot, simulate
+from calib.calibration.engine import calibrate_contact_chains
 from calib.measurements.contact_campaign import simulate_contacts
 from calib.measurements.true_robot import true_robot
 

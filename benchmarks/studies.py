@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 import calib
+from calib.calibration import residual_stats
 from calib.design.constraints import Constraints, filter_candidates
 from calib.design.design import candidate_configurations
 from calib.design.observability import observation_model
@@ -68,7 +69,7 @@ def realdata() -> None:
         for level in LEVELS:
             r = calib.calibrate(chain, train, params=level, validate=test)
             v = r.validation.calibrated
-            p1 = calib.residual_stats(r, first_point(test4)) if label == "4 points" else v
+            p1 = residual_stats(r, first_point(test4)) if label == "4 points" else v
             print(
                 f"{label} | {level} | {len(r.names)} | {mm(r.after.position_rms)} / "
                 f"{mm(r.after.position_max)} | {mm(v.position_rms)} / {mm(v.position_max)} | "
@@ -109,7 +110,7 @@ def _heldout_mm(chain, q, measure, seed) -> float:
     ref = candidate_configurations(chain, 100, seed=123)
     truth = calib.simulate(chain, ref, measure, noise_mm=0.0, seed=seed).measurements
     result = calib.calibrate(chain, data, params="complete")
-    return 1e3 * calib.residual_stats(result, truth).position_rms
+    return 1e3 * residual_stats(result, truth).position_rms
 
 
 def _k_matching(errors, b, key) -> str:

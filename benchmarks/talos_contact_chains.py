@@ -40,7 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from calib import calibrate_contact_chains, load_robot
+from calib import load_robot
+from calib.calibration.engine import calibrate_contact_chains
 from calib.measurements.contact_campaign import ContactData, read_contacts
 from calib.measurements.contact_loops import join_loops, read_loop
 

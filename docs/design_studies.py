@@ -27,7 +27,8 @@ import sys
 
 import numpy as np
 
-from calib import calibrate, load_chain, residual_stats, simulate
+from calib import calibrate, load_chain, simulate
+from calib.calibration import residual_stats
 from calib.calibration.instrument import tree_points
 from calib.design.constraints import Constraints, filter_candidates
 from calib.design.design import candidate_configurations, design, least_i

@@ -20,6 +20,7 @@ import calib
 from calib.calibration.pixel_chain import pixel_rows
 from calib.exceptions import InvalidArgumentError
 from calib.measurements.pixel_simulation import simulate_pixels
+from calib.measurements.tree_campaign import simulate_tree
 
 URDF = "talos_full_v2.urdf"
 ARMS = (
@@ -126,7 +127,7 @@ def test_a_tree_measured_by_one_instrument_counts_the_pinocchio_rank():
     placement of both arms and the torso)."""
     tree = calib.load_robot("talos", tool=["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"])
     markers = [(0.02, 0.01, 0.05), (-0.01, 0.03, 0.04)]
-    d = calib.simulate_tree(tree, 30, markers=markers, seed=2, **ZERO).measurements
+    d = simulate_tree(tree, 30, markers=markers, seed=2, **ZERO).measurements
     res = calib.analyze(calib.Problem(calib.Term(tree, d)))
     assert res.shape == "tree"
     assert res.n_base == _tree_rank(tree, d, markers)

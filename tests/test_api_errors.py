@@ -21,28 +21,53 @@ from conftest import chain_of, mdh_of
 
 import calib
 from calib import CalibError, Measurement
+from calib.calibration import residual_stats
+from calib.calibration.engine import calibrate_contact_chains
 from calib.calibration.entry import calibrate_contacts
+from calib.identification.identifiability import analyze_model
+from calib.identification.jacobian import complete_jacobian, identification_jacobian
+from calib.identification.parameters import (
+    Kind,
+    Parameter,
+    ParameterSet,
+    complete_parameters,
+    paper_parameters,
+)
+from calib.identification.pinhole import Pinhole
+from calib.identification.tree_jacobian import (
+    tree_complete_jacobian,
+    tree_jacobian,
+    tree_parameters,
+)
+from calib.kinematics.catalog import CatalogEntry
+from calib.kinematics.mdh import from_lines
+from calib.kinematics.tree import load_tree
+from calib.kinematics.tree_export import calibrated_tree_urdf, write_calibrated_tree_urdf
+from calib.kinematics.urdf_export import calibrated_urdf, measurement_to_base, write_calibrated_urdf
+from calib.measurements.intrinsics import Intrinsics
+from calib.measurements.pixels import PixelObservations, Target
+from calib.measurements.tree_campaign import simulate_tree
 from calib.outputs.plots import calibration_figure
 from calib.outputs.sweep import marker_count, sweep
 
 CHAIN = chain_of("ur5")
 ROOTED = calib.load_chain("ur5", base="world")  # measured from the URDF's root link
 MDH = mdh_of("ur5")
-PSET = calib.paper_parameters(MDH)
+PSET = paper_parameters(MDH)
 Q = np.zeros((4, 6))
 NAN_Q = np.array([[0, 0, np.nan, 0, 0, 0]] * 4)
 WRONG_Q = np.zeros((4, 5))
-TREE = calib.load_tree("bolt")  # 6 joints, 2 tools
+TREE = load_tree("bolt")  # 6 joints, 2 tools
 TREE_MODEL = calib.from_tree(TREE)
-TREE_SET = calib.tree_parameters(TREE_MODEL)
+TREE_SET = tree_parameters(TREE_MODEL)
 TREE_Q = np.zeros((4, 6))
 ARRAY = np.arange(60.0).reshape(10, 6)  # a notebook's configurations
 DATA = calib.simulate(CHAIN, 30, seed=0).measurements
 PROBLEM = calib.Problem((calib.Term(CHAIN, DATA),))
 TOUCHES = calib.simulate_contacts(CHAIN, 20, seed=0).data
 CONFIGS = CHAIN.random_configurations(10, seed=0)
-INTRINSICS = calib.Intrinsics(640, 480, calib.Pinhole(600.0, 600.0, 320.0, 240.0))
-TARGET = calib.Target(("a", "b", "c"), np.eye(3) * 0.05)
+INTRINSICS = Intrinsics(640, 480, Pinhole(600.0, 600.0, 320.0, 240.0))
+TARGET = Target(("a", "b", "c"), np.eye(3) * 0.05)
 
 
 def _cases():
@@ -57,32 +82,30 @@ def _cases():
         "load_chain empty base": lambda: calib.load_chain("ur5", base=" "),
         "load_chain missing file": lambda: calib.load_chain("/no/such/robot.urdf"),
         "load_chain unknown name": lambda: calib.load_chain("nosuchrobot"),
-        "load_tree robot=5": lambda: calib.load_tree(5),
-        "load_tree tools=str list": lambda: calib.load_tree("talos", tools=["left_sole_link", 5]),
-        "load_tree tools=5": lambda: calib.load_tree("talos", tools=5),
-        "load_tree file without tools": lambda: calib.load_tree(str(CHAIN.urdf_path)),
+        "load_tree robot=5": lambda: load_tree(5),
+        "load_tree tools=str list": lambda: load_tree("talos", tools=["left_sole_link", 5]),
+        "load_tree tools=5": lambda: load_tree("talos", tools=5),
+        "load_tree file without tools": lambda: load_tree(str(CHAIN.urdf_path)),
         "load_robot tool=[]": lambda: calib.load_robot("ur5", tool=[]),
         "load_robot tool=5": lambda: calib.load_robot("ur5", tool=5),
         "from_tree chain": lambda: calib.from_tree(CHAIN),
-        "tree_parameters chain model": lambda: calib.tree_parameters(MDH),
-        "tree_parameters label": lambda: calib.tree_parameters(TREE_MODEL, "all"),
-        "tree_jacobian shape": lambda: calib.tree_jacobian(TREE_MODEL, TREE_SET, WRONG_Q),
-        "tree_jacobian params": lambda: calib.tree_jacobian(TREE_MODEL, "paper", TREE_Q),
-        "tree_jacobian foreign set": lambda: calib.tree_jacobian(
-            TREE_MODEL, calib.ParameterSet("x", (calib.Parameter(40, calib.Kind.R),)), TREE_Q
+        "tree_parameters chain model": lambda: tree_parameters(MDH),
+        "tree_parameters label": lambda: tree_parameters(TREE_MODEL, "all"),
+        "tree_jacobian shape": lambda: tree_jacobian(TREE_MODEL, TREE_SET, WRONG_Q),
+        "tree_jacobian params": lambda: tree_jacobian(TREE_MODEL, "paper", TREE_Q),
+        "tree_jacobian foreign set": lambda: tree_jacobian(
+            TREE_MODEL, ParameterSet("x", (Parameter(40, Kind.R),)), TREE_Q
         ),
-        "tree_jacobian measurement": lambda: calib.tree_jacobian(
-            TREE_MODEL, TREE_SET, TREE_Q, "pose"
-        ),
-        "tree_jacobian measured": lambda: calib.tree_jacobian(
+        "tree_jacobian measurement": lambda: tree_jacobian(TREE_MODEL, TREE_SET, TREE_Q, "pose"),
+        "tree_jacobian measured": lambda: tree_jacobian(
             TREE_MODEL, TREE_SET, TREE_Q, measured=np.ones((4, 3))
         ),
-        "tree_complete_jacobian q": lambda: calib.tree_complete_jacobian(TREE_MODEL, "x"),
-        "tree_complete_jacobian model": lambda: calib.tree_complete_jacobian(MDH, Q),
+        "tree_complete_jacobian q": lambda: tree_complete_jacobian(TREE_MODEL, "x"),
+        "tree_complete_jacobian model": lambda: tree_complete_jacobian(MDH, Q),
         "from_chain str": lambda: calib.from_chain("ur5"),
         "from_chain tol": lambda: calib.from_chain(CHAIN, parallel_tol=-1),
-        "from_lines shapes": lambda: calib.from_lines(np.zeros(3), np.eye(3), [0], np.eye(4)),
-        "from_lines names": lambda: calib.from_lines(
+        "from_lines shapes": lambda: from_lines(np.zeros(3), np.eye(3), [0], np.eye(4)),
+        "from_lines names": lambda: from_lines(
             np.zeros((1, 3)), [[0, 0, 1]], [0], np.eye(4), joint_names=("a", "b")
         ),
         "analyze configs='x'": lambda: calib.analyze("ur5", configs="x"),
@@ -92,24 +115,24 @@ def _cases():
         "analyze marker": lambda: calib.analyze("ur5", marker="abc"),
         "analyze params": lambda: calib.analyze("ur5", params=["paper"]),
         "analyze base=5": lambda: calib.analyze("ur5", base=5),
-        "analyze_model mdh": lambda: calib.analyze_model(CHAIN, "paper", None, Q),
-        "analyze_model params": lambda: calib.analyze_model(MDH, 3, None, Q),
-        "analyze_model measurement": lambda: calib.analyze_model(MDH, "paper", "pose", Q),
-        "analyze_model configs='x'": lambda: calib.analyze_model(MDH, "paper", None, "x"),
-        "analyze_model configs shape": lambda: calib.analyze_model(MDH, "paper", None, WRONG_Q),
-        "analyze_model configs NaN": lambda: calib.analyze_model(MDH, "paper", None, NAN_Q),
-        "analyze_model configs None": lambda: calib.analyze_model(MDH, "paper", None, None),
-        "analyze_model ragged": lambda: calib.analyze_model(MDH, "paper", None, [[0], [0, 1]]),
-        "analyze_model foreign set": lambda: calib.analyze_model(
-            other_mdh.replace(), calib.paper_parameters(mdh_of("panda")), None, np.zeros((4, 6))
+        "analyze_model mdh": lambda: analyze_model(CHAIN, "paper", None, Q),
+        "analyze_model params": lambda: analyze_model(MDH, 3, None, Q),
+        "analyze_model measurement": lambda: analyze_model(MDH, "paper", "pose", Q),
+        "analyze_model configs='x'": lambda: analyze_model(MDH, "paper", None, "x"),
+        "analyze_model configs shape": lambda: analyze_model(MDH, "paper", None, WRONG_Q),
+        "analyze_model configs NaN": lambda: analyze_model(MDH, "paper", None, NAN_Q),
+        "analyze_model configs None": lambda: analyze_model(MDH, "paper", None, None),
+        "analyze_model ragged": lambda: analyze_model(MDH, "paper", None, [[0], [0, 1]]),
+        "analyze_model foreign set": lambda: analyze_model(
+            other_mdh.replace(), paper_parameters(mdh_of("panda")), None, np.zeros((4, 6))
         ),
-        "identification_jacobian shape": lambda: calib.identification_jacobian(MDH, PSET, WRONG_Q),
-        "identification_jacobian NaN": lambda: calib.identification_jacobian(MDH, PSET, NAN_Q),
-        "identification_jacobian params": lambda: calib.identification_jacobian(MDH, "paper", Q),
-        "complete_jacobian q": lambda: calib.complete_jacobian(MDH, "x"),
-        "complete_jacobian measurement": lambda: calib.complete_jacobian(MDH, Q, "pose"),
-        "paper_parameters": lambda: calib.paper_parameters(CHAIN),
-        "complete_parameters": lambda: calib.complete_parameters(None),
+        "identification_jacobian shape": lambda: identification_jacobian(MDH, PSET, WRONG_Q),
+        "identification_jacobian NaN": lambda: identification_jacobian(MDH, PSET, NAN_Q),
+        "identification_jacobian params": lambda: identification_jacobian(MDH, "paper", Q),
+        "complete_jacobian q": lambda: complete_jacobian(MDH, "x"),
+        "complete_jacobian measurement": lambda: complete_jacobian(MDH, Q, "pose"),
+        "paper_parameters": lambda: paper_parameters(CHAIN),
+        "complete_parameters": lambda: complete_parameters(None),
         "ParameterSet.apply shape": lambda: PSET.apply(MDH, np.zeros(3)),
         "ParameterSet.apply NaN": lambda: PSET.apply(MDH, np.full(len(PSET), np.nan)),
         "Measurement.of": lambda: Measurement.of("pose", marker=[1, 2]),
@@ -118,43 +141,39 @@ def _cases():
         "Chain.tool_placements": lambda: CHAIN.tool_placements(WRONG_Q),
         "MDHModel.forward": lambda: MDH.forward(WRONG_Q),
         "MDHModel.kinematics": lambda: MDH.kinematics("x"),
-        "calibrated_urdf chain": lambda: calib.calibrated_urdf("ur5", MDH, MDH),
-        "calibrated_urdf models": lambda: calib.calibrated_urdf(other, MDH, MDH),
-        "calibrated_urdf model type": lambda: calib.calibrated_urdf(CHAIN, MDH, None),
-        "write_calibrated_urdf missing dir": lambda: calib.write_calibrated_urdf(
+        "calibrated_urdf chain": lambda: calibrated_urdf("ur5", MDH, MDH),
+        "calibrated_urdf models": lambda: calibrated_urdf(other, MDH, MDH),
+        "calibrated_urdf model type": lambda: calibrated_urdf(CHAIN, MDH, None),
+        "write_calibrated_urdf missing dir": lambda: write_calibrated_urdf(
             "/no/such/dir/cal.urdf", CHAIN, MDH, MDH
         ),
-        "measurement_to_base models": lambda: calib.measurement_to_base(None, MDH),
-        "residual_stats result": lambda: calib.residual_stats(None, None),
+        "measurement_to_base models": lambda: measurement_to_base(None, MDH),
+        "residual_stats result": lambda: residual_stats(None, None),
         "plots.calibration_figure not a result": lambda: calibration_figure("report.json"),
         "calibrate chain": lambda: calib.calibrate("ur5", None),
         "calibrate level=": lambda: calib.calibrate(CHAIN, None, level="paper"),
         "calibrate unknown option": lambda: calib.calibrate(CHAIN, None, levl="paper"),
-        "write_calibrated_urdf path": lambda: calib.write_calibrated_urdf(3.5, CHAIN, MDH, MDH),
-        "calibrate_tree chain": lambda: calib.calibrate_tree(CHAIN, None),
-        "calibrate_contact_chains tree": lambda: calib.calibrate_contact_chains([TREE], [None]),
-        "calibrate_contact_chains data": lambda: calib.calibrate_contact_chains([CHAIN], [None]),
-        "calibrate_contact_chains empty": lambda: calib.calibrate_contact_chains([], []),
+        "write_calibrated_urdf path": lambda: write_calibrated_urdf(3.5, CHAIN, MDH, MDH),
+        "calibrate_tree chain": lambda: calib.calibrate(CHAIN, None),
+        "calibrate_contact_chains tree": lambda: calibrate_contact_chains([TREE], [None]),
+        "calibrate_contact_chains data": lambda: calibrate_contact_chains([CHAIN], [None]),
+        "calibrate_contact_chains empty": lambda: calibrate_contact_chains([], []),
         "entry.calibrate_contacts chain": lambda: calibrate_contacts("ur5", None),
         "entry.calibrate_contacts unknown option": lambda: calibrate_contacts(CHAIN, None, levl=1),
-        "calibrate_contact_chains str": lambda: calib.calibrate_contact_chains("ur5", "x"),
-        "calibrate_tree level": lambda: calib.calibrate_tree(TREE, None, params="auto"),
-        "simulate_tree chain": lambda: calib.simulate_tree(CHAIN),
-        "simulate_tree markers": lambda: calib.simulate_tree(TREE, markers=[1, 2]),
-        "simulate_tree noise": lambda: calib.simulate_tree(TREE, noise_mm=-1),
-        "calibrated_tree_urdf models": lambda: calib.calibrated_tree_urdf(TREE, None, TREE_MODEL),
-        "calibrated_tree_urdf tree": lambda: calib.calibrated_tree_urdf(
-            CHAIN, TREE_MODEL, TREE_MODEL
-        ),
-        "calibrated_urdf tool": lambda: calib.calibrated_urdf(CHAIN, MDH, MDH, tool="x"),
-        "calibrated_urdf markers": lambda: calib.calibrated_urdf(CHAIN, MDH, MDH, markers=[1]),
-        "calibrated_urdf world": lambda: calib.calibrated_urdf(
-            CHAIN, MDH, MDH, world=("a<b", np.eye(4))
-        ),
+        "calibrate_contact_chains str": lambda: calibrate_contact_chains("ur5", "x"),
+        "calibrate_tree level": lambda: calib.calibrate(TREE, None, params="auto"),
+        "simulate_tree chain": lambda: simulate_tree(CHAIN),
+        "simulate_tree markers": lambda: simulate_tree(TREE, markers=[1, 2]),
+        "simulate_tree noise": lambda: simulate_tree(TREE, noise_mm=-1),
+        "calibrated_tree_urdf models": lambda: calibrated_tree_urdf(TREE, None, TREE_MODEL),
+        "calibrated_tree_urdf tree": lambda: calibrated_tree_urdf(CHAIN, TREE_MODEL, TREE_MODEL),
+        "calibrated_urdf tool": lambda: calibrated_urdf(CHAIN, MDH, MDH, tool="x"),
+        "calibrated_urdf markers": lambda: calibrated_urdf(CHAIN, MDH, MDH, markers=[1]),
+        "calibrated_urdf world": lambda: calibrated_urdf(CHAIN, MDH, MDH, world=("a<b", np.eye(4))),
         "load_calibrated missing": lambda: calib.load_calibrated(CHAIN.urdf_path, "/no/such.json"),
         "load_calibrated not json": lambda: calib.load_calibrated(CHAIN.urdf_path, CHAIN.urdf_path),
         "load_calibrated urdf": lambda: calib.load_calibrated(5, CHAIN.urdf_path),
-        "write_calibrated_tree_urdf path": lambda: calib.write_calibrated_tree_urdf(
+        "write_calibrated_tree_urdf path": lambda: write_calibrated_tree_urdf(
             3.5, TREE, TREE_MODEL, TREE_MODEL
         ),
         **_third_round_cases(),
@@ -206,14 +225,14 @@ def _third_round_cases():
         "calibrate empty validation touches": lambda: calib.calibrate(
             CHAIN, touches, validate=no_touches
         ),
-        "calibrate_tree max_iterations=3e9": lambda: calib.calibrate_tree(
+        "calibrate_tree max_iterations=3e9": lambda: calib.calibrate(
             TREE, None, max_iterations=3_000_000_000
         ),
-        "simulate_tree error_mm=1e300": lambda: calib.simulate_tree(TREE, 5, error_mm=1e300),
-        "calibrate_contact_chains pose_weight=nan": lambda: calib.calibrate_contact_chains(
+        "simulate_tree error_mm=1e300": lambda: simulate_tree(TREE, 5, error_mm=1e300),
+        "calibrate_contact_chains pose_weight=nan": lambda: calibrate_contact_chains(
             [CHAIN], [touches], pose_weight=float("nan")
         ),
-        "calibrate_contact_chains empty set": lambda: calib.calibrate_contact_chains(
+        "calibrate_contact_chains empty set": lambda: calibrate_contact_chains(
             [CHAIN], [no_touches]
         ),
         "design chain=str": lambda: calib.design("no_such_robot", 5),
@@ -271,7 +290,7 @@ def _third_round_cases():
             [CHAIN], folder / "t.urdf", measuring=[ROOTED]
         ),
         "true_robot.true_robot over the nominal": lambda: true_robot([CHAIN], CHAIN.urdf_path),
-        "calibrate_contact_chains measured from the root": lambda: calib.calibrate_contact_chains(
+        "calibrate_contact_chains measured from the root": lambda: calibrate_contact_chains(
             [ROOTED], [calib.simulate(ROOTED, 12, measure="position", seed=0).measurements]
         ),
         # An array where a number, a name or a marker goes (a notebook's q, several markers):
@@ -309,7 +328,7 @@ def _third_round_cases():
         "simulate_pixels configurations in degrees": lambda: calib.simulate_pixels(
             CHAIN, "cam", np.eye(4), INTRINSICS, TARGET, np.degrees(CONFIGS)
         ),
-        "simulate_tree configurations in degrees": lambda: calib.simulate_tree(
+        "simulate_tree configurations in degrees": lambda: simulate_tree(
             TREE, np.degrees(TREE.random_configurations(5, seed=0))
         ),
         # An option beside a problem (whose options are in it) was ignored: no rows held out.
@@ -359,7 +378,7 @@ def test_every_public_function_is_covered():
     }
     covered = {case.split()[0] for case in CASES}
     assert functions - {"catalog"} <= covered, functions - covered
-    assert all(isinstance(e, calib.CatalogEntry) for e in calib.catalog())
+    assert all(isinstance(e, CatalogEntry) for e in calib.catalog())
 
 
 def test_the_python_page_names_every_public_name():
@@ -404,8 +423,10 @@ def test_simulate_names_the_function_called_and_the_tree_route():
     cases = {
         (calib.simulate, 5): "simulate takes a Chain (see load_chain), a catalog name or a "
         "URDF path, got int 5",
-        (calib.simulate, "bolt"): "got the tree 'bolt': a tree's campaign is calib.simulate_tree",
-        (calib.simulate, tree): "got the tree 'bolt': a tree's campaign is calib.simulate_tree",
+        (calib.simulate, "bolt"): "got the tree 'bolt': a tree's campaign is "
+        "calib.measurements.tree_campaign.simulate_tree",
+        (calib.simulate, tree): "got the tree 'bolt': a tree's campaign is "
+        "calib.measurements.tree_campaign.simulate_tree",
         (calib.simulate_contacts, 5): "simulate_contacts takes a Chain (see load_chain)",
         (calib.simulate_contacts, tree): "got the tree 'bolt': contacts are simulated on one",
     }
@@ -448,10 +469,10 @@ def test_results_and_data_print_in_one_line():
         touches.truth: "<ContactTruth ur5: 2 planes (table1, table2), 33 complete parameters "
         "perturbed (1 mm, 1 mrad), joint noise 0 mrad, seed 0>",
         touches.data: "<ContactData <simulated ur5>: 12 plane touches of 2 planes, 6 joints>",
-        calib.simulate_tree(TREE, 3): "<TreeCampaign <simulated bolt>: 3 configurations x 2 "
+        simulate_tree(TREE, 3): "<TreeCampaign <simulated bolt>: 3 configurations x 2 "
         "tools (FL_FOOT, FR_FOOT), ",
         CHAIN: "<Chain ur5: base_link -> tool0, 6 joints>",
-        calib.tree_parameters(TREE_MODEL): "<ParameterSet paper: 36 parameters (theta0, ",
+        tree_parameters(TREE_MODEL): "<ParameterSet paper: 36 parameters (theta0, ",
         calib.load_robot("ur5", tool=("wrist_2_link", "tool0")): "<Tree ur5: base_link -> "
         "wrist_2_link, tool0, 6 joints>",
         calib.analyze(calib.Problem(calib.Term(CHAIN, campaign.measurements))): "<ProblemAnalysis "
@@ -478,11 +499,11 @@ def test_a_cameras_data_print_in_one_line():
     """A camera's pieces printed their arrays: PixelData 42,719 characters over hundreds of
     lines for 2088 pixels, the observations, target, camera and intrinsics likewise (a
     pinhole's 8 or more distortion coefficients over lines)."""
-    pinhole = calib.Pinhole(600.0, 600.0, 320.0, 240.0, np.linspace(-0.1, 0.1, 8))
-    intr = calib.Intrinsics(640, 480, pinhole, "intr.yaml")
-    target = calib.Target(("a", "b", "c"), np.eye(3) * 0.05, source="target.csv")
+    pinhole = Pinhole(600.0, 600.0, 320.0, 240.0, np.linspace(-0.1, 0.1, 8))
+    intr = Intrinsics(640, 480, pinhole, "intr.yaml")
+    target = Target(("a", "b", "c"), np.eye(3) * 0.05, source="target.csv")
     q = np.zeros((200, 6))
-    obs = calib.PixelObservations(
+    obs = PixelObservations(
         CHAIN.joint_names, q, ("cam",) * 200, ("a", "b", "c", "a") * 50, np.ones((200, 2))
     )
     camera = calib.PixelCamera("cam", "world", intr, None)
@@ -508,8 +529,8 @@ def test_one_point_number_given_alone_is_asked_as_a_sequence():
 def test_a_cameras_placement_given_as_a_list_is_an_array():
     """``PixelCamera(..., placement=np.eye(4).tolist())`` passed the rigid-transform check
     and was kept a list: the fit failed with a TypeError (list indices)."""
-    pinhole = calib.Pinhole(600.0, 600.0, 320.0, 240.0)
-    camera = calib.PixelCamera("cam", "world", calib.Intrinsics(640, 480, pinhole), [
+    pinhole = Pinhole(600.0, 600.0, 320.0, 240.0)
+    camera = calib.PixelCamera("cam", "world", Intrinsics(640, 480, pinhole), [
         [1.0, 0.0, 0.0, 0.5], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 1.0], [0, 0, 0, 1]
     ])  # fmt: skip
     assert isinstance(camera.placement, np.ndarray) and camera.placement.dtype == float

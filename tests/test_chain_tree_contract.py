@@ -23,7 +23,8 @@ from conftest import chain_of
 from test_round_off import MINIMAL  # one joint, a tool whose rpy is RPY
 
 import calib
-from calib import InvalidArgumentError, calibrate, calibrate_tree, simulate
+from calib import InvalidArgumentError, calibrate, simulate
+from calib.calibration.entry import calibrate_tree
 from calib.calibration.options import APPLIES, TREE_LEVELS, Options
 from calib.calibration.problem import Problem, Term
 from calib.cli.commands import main

@@ -17,6 +17,7 @@ from types import SimpleNamespace
 import pytest
 
 import calib
+from calib.calibration.pixel_chain import Unknowns
 from calib.calibration.pixel_chain_result import EXPECTED_PX, PixelChain
 from calib.cli.commands import build_parser, main
 from calib.cli.flags import FLAGS, OPTIONS, in_flags
@@ -69,15 +70,15 @@ def test_a_stalled_fit_names_the_flag_from_calib_calibrate(stalled, tmp_path, ca
 def test_a_wrong_camera_warning_names_the_python_way_out():
     """A calibrated reprojection error far above a detector's: the warning said
     ``(--refine-intrinsics)`` to a Python user; it names the pixel term's unknowns now."""
-    assert calib.Unknowns(intrinsics=True).intrinsics  # the way out, as the API takes it
+    assert Unknowns(intrinsics=True).intrinsics  # the way out, as the API takes it
     part = SimpleNamespace(
         pixels={"train": {"reprojection_rms_px": 10 * EXPECTED_PX}},
-        state=SimpleNamespace(what=calib.Unknowns()),
+        state=SimpleNamespace(what=Unknowns()),
         name="cam",
     )
     (text,) = PixelChain.warnings(part)
     assert "Unknowns(intrinsics=True)" in text and FLAG.search(text) is None
-    part.state.what = calib.Unknowns(intrinsics=True)  # fitted already: no way out named
+    part.state.what = Unknowns(intrinsics=True)  # fitted already: no way out named
     assert "Unknowns" not in PixelChain.warnings(part)[0]
 
 

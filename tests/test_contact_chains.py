@@ -19,8 +19,9 @@ import pytest
 from contact_scorer import plane_gaps, read_joints, relative_placements
 from contact_states import plane_state
 
-from calib import calibrate_contact_chains, load_robot, simulate
+from calib import load_robot, simulate
 from calib.calibration.contact_checks import split_contacts
+from calib.calibration.engine import calibrate_contact_chains
 from calib.calibration.engine_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.placements import Placements
 from calib.cli.commands import main

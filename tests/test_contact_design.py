@@ -19,6 +19,7 @@ from calib.cli.commands import main
 from calib.design.configurations import read_configurations
 from calib.design.constraints import Constraints
 from calib.design.design import design, evaluate
+from calib.kinematics.tree import load_tree
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -86,7 +87,7 @@ def test_contact_design_errors(tmp_path, capsys):
         design(chain, 10, measure="plane", marker=(0.0, 0.0, 0.1))
     with pytest.raises(InvalidArgumentError, match="complete model"):
         design(chain, 10, measure="plane", params="joints")
-    tree = calib.load_tree("talos", None, ["gripper_left_base_link", "gripper_right_base_link"])
+    tree = load_tree("talos", None, ["gripper_left_base_link", "gripper_right_base_link"])
     with pytest.raises(InvalidArgumentError, match="one chain"):
         design(tree, 10, measure="plane")
     out = tmp_path / "c.csv"

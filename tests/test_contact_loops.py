@@ -19,9 +19,10 @@ from contact_scorer import contact_gaps
 from contact_states import plane_state
 from test_contact_chains import central_differences, moved_chains, true_robot
 
-from calib import calibrate_contact_chains, load_robot
+from calib import load_robot
 from calib.calibration.contact_checks import split_contacts
 from calib.calibration.contact_model import ContactFrames, ContactState
+from calib.calibration.engine import calibrate_contact_chains
 from calib.calibration.engine_model import ChainsData, ChainsModel, ChainsState
 from calib.cli.commands import main
 from calib.exceptions import InvalidArgumentError

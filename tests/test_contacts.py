@@ -21,10 +21,11 @@ from hypothesis import strategies as st
 from test_properties import build_chain, convert, random_q
 
 import calib
-from calib import InvalidArgumentError, Measurement, analyze, analyze_model, load_chain
+from calib import InvalidArgumentError, Measurement, analyze, load_chain
 from calib.cli.commands import main
 from calib.identification.contact_postures import contact_configurations, joint_offsets
 from calib.identification.contacts import contact_kind
+from calib.identification.identifiability import analyze_model
 from calib.identification.jacobian import identification_jacobian
 from calib.identification.kinds import kind_of
 from calib.kinematics.mdh import from_chain

@@ -12,13 +12,15 @@ import io
 import numpy as np
 import pytest
 
-from calib import Columns, DataError, Intrinsics, Pinhole, load_chain, read_measurements, simulate
+from calib import Columns, DataError, load_chain, read_measurements, simulate
 from calib.cli import main
 from calib.cli.flags import FLAGS
 from calib.design.configurations import read_configurations
+from calib.identification.pinhole import Pinhole
 from calib.measurements.contact_campaign import parse_contacts
 from calib.measurements.csvfile import MM_HINT, measurements_csv
 from calib.measurements.detection_files import read_image_joints
+from calib.measurements.intrinsics import Intrinsics
 from calib.measurements.pixels import parse_observations, parse_target
 
 

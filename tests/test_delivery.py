@@ -15,9 +15,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from calib import InvalidArgumentError, complete_parameters, from_chain, load_calibrated, load_chain
+from calib import InvalidArgumentError, from_chain, load_calibrated, load_chain
 from calib.calibration.model import State
 from calib.cli.commands import main
+from calib.identification.parameters import complete_parameters
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
 
@@ -543,7 +544,9 @@ def test_tiago_elastic_files_reproduce_the_whole_model(tmp_path, capsys):
 def test_write_urdf_refuses_what_is_not_a_path_for_every_shape():
     """A tree's ``write_urdf(3)`` is one InvalidArgumentError, as a chain touching's is (it was
     a TypeError from the output checks: only the moved-origins URDF checked the path)."""
-    from calib import calibrate, load_tree, simulate_tree
+    from calib import calibrate
+    from calib.kinematics.tree import load_tree
+    from calib.measurements.tree_campaign import simulate_tree
 
     tree = load_tree("bolt")
     result = calibrate(tree, simulate_tree(tree, 30, seed=1).measurements)
@@ -654,7 +657,9 @@ def test_a_robot_loaded_by_a_relative_name_reads_that_file_after_chdir(tmp_path,
     nominal URDF by its new name. The report keeps the name given."""
     import shutil
 
-    from calib import calibrate, load_tree, read_measurements, simulate_tree
+    from calib import calibrate, read_measurements
+    from calib.kinematics.tree import load_tree
+    from calib.measurements.tree_campaign import simulate_tree
 
     here, elsewhere = tmp_path / "in", tmp_path / "elsewhere"
     here.mkdir()

@@ -13,7 +13,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pinref import pair_collides
 
-from calib import InvalidArgumentError, calibrate, load_chain, residual_stats, simulate
+from calib import InvalidArgumentError, calibrate, load_chain, simulate
+from calib.calibration import residual_stats
 from calib.cli.commands import main
 from calib.design.blocks import solve_blocks
 from calib.design.configurations import configurations_csv, parse_configurations

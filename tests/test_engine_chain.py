@@ -18,15 +18,10 @@ from pinref import instrument_points
 
 import calib
 import calib.calibration.entry as entry
-from calib import (
-    InvalidArgumentError,
-    calibrate,
-    complete_parameters,
-    from_chain,
-    load_chain,
-    read_measurements,
-)
+from calib import InvalidArgumentError, calibrate, from_chain, load_chain, read_measurements
+from calib.calibration.engine import calibrate_contact_chains
 from calib.calibration.model import State
+from calib.identification.parameters import complete_parameters
 from calib.measurements.data import Measurements
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
@@ -232,7 +227,7 @@ def test_a_marker_guess_without_a_measured_term_is_refused():
     chain = load_chain("ur5")
     touches = calib.simulate_contacts(chain, 12, "plane", seed=0).data
     with pytest.raises(InvalidArgumentError, match="marker is for measured terms"):
-        calib.calibrate_contact_chains([chain], [touches], marker=(0.0, 0.0, 0.1))
+        calibrate_contact_chains([chain], [touches], marker=(0.0, 0.0, 0.1))
 
 
 def test_the_noise_reaches_the_outlier_rule():

@@ -23,6 +23,7 @@ from calib import InvalidArgumentError, calibrate, load_calibrated, load_chain
 from calib.calibration import residual_stats
 from calib.calibration.validation import stats as state_stats
 from calib.cli.commands import main
+from calib.measurements.tree_campaign import simulate_tree
 
 MARKER = (0.05, 0.02, 0.1)
 
@@ -176,7 +177,7 @@ def test_world_link_and_on_robot_are_for_one_chain(ur5_fit):
     (UR5's base_link, fixed to world: moving that joint moves the whole arm; a head camera
     measuring the arm is written: tests/test_on_robot.py)."""
     tree = calib.load_robot("talos", tool=["wrist_left_ft_tool_link", "wrist_right_ft_tool_link"])
-    data = calib.simulate_tree(tree, 20, seed=2, error_mm=0.0, error_mrad=0.0).measurements
+    data = simulate_tree(tree, 20, seed=2, error_mm=0.0, error_mrad=0.0).measurements
     result = calibrate(tree, data)
     assert result.shape == "tree"
     for call in (result.urdf, result.to_dict):

@@ -40,8 +40,8 @@ from calib import (
     load_robot,
     simulate,
     simulate_contacts,
-    simulate_tree,
 )
+from calib.measurements.tree_campaign import simulate_tree
 
 TALOS = "talos_full_v2.urdf"
 CONTACT_KINDS = ("plane", "plane-point", "fixed-point", "fixed-pose")

@@ -187,7 +187,8 @@ def test_check_outputs_messages_name_the_options(tmp_path):
 
 
 def test_api_export_refuses_to_overwrite_the_nominal_urdf(tmp_path):
-    from calib import from_chain, load_chain, write_calibrated_urdf
+    from calib import from_chain, load_chain
+    from calib.kinematics.urdf_export import write_calibrated_urdf
 
     robot = tmp_path / "r.urdf"
     robot.write_bytes(AID.read_bytes())

@@ -262,7 +262,8 @@ def test_touches_pooled_as_explicit_validation_runs():
 
 def test_tree_pooled_as_explicit_validation_runs():
     """A tree's two tools at each posture: a posture's rows (both tools) in one fold."""
-    from calib import load_robot, simulate_tree
+    from calib import load_robot
+    from calib.measurements.tree_campaign import simulate_tree
 
     tree = load_robot("ur5", tool=("wrist_3_link", "forearm_link"))
     data = simulate_tree(tree, 24, noise_mm=0.05, seed=5).measurements

@@ -128,7 +128,7 @@ def test_a_bad_held_out_touch_is_set_aside():
 
 def test_a_bad_held_out_tree_row_is_set_aside():
     """Item 3 for trees: one wild held-out row refused the run ('another frame')."""
-    from calib import calibrate_tree
+    from calib.calibration.entry import calibrate_tree
     from calib.measurements.tree_campaign import simulate_tree
 
     tree = load_robot("bolt")
@@ -170,7 +170,7 @@ def test_a_touch_error_hidden_by_the_geometric_errors_is_set_aside_after_the_fit
 def test_a_tree_row_hidden_by_the_geometric_errors_is_set_aside_after_the_fit():
     """Issue 28 for trees: an 8 mm error on one tool's row, hidden among the registration's
     geometric errors (3 mm / 3 mrad), is set aside after the joint fit (per tool's rows)."""
-    from calib import calibrate_tree
+    from calib.calibration.entry import calibrate_tree
     from calib.measurements.tree_campaign import simulate_tree
 
     tree = load_robot("bolt")
@@ -190,7 +190,7 @@ def test_ten_20_mm_tree_outliers_hidden_by_the_geometric_errors_are_all_found():
     """Issue 28: a tree's measured terms are tested as one chain's are (every row again, from
     the robust proposals). Ten 20 mm outliers among a Bolt's 70 rows (5 mm / 5 mrad errors):
     before, its FR_FOOT term's six were kept (none found) and its fit was 4.7 mm RMS."""
-    from calib import calibrate_tree
+    from calib.calibration.entry import calibrate_tree
     from calib.measurements.tree_campaign import simulate_tree
 
     tree = load_robot("bolt")

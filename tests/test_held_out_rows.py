@@ -17,8 +17,8 @@ from pinref import pin_config, pin_frame
 from pixel_scorer import link_points, textbook_pixels
 from pixel_setups import grid
 
-from calib import Pinhole
 from calib.cli import main
+from calib.identification.pinhole import Pinhole
 from calib.measurements.intrinsics import Intrinsics, write_intrinsics
 from calib.measurements.pixels import write_target
 

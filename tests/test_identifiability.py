@@ -17,24 +17,16 @@ from conftest import ANALYSABLE, INDEPENDENT, chain_of, mdh_of
 from pinref import own_random_q, pin_config, pin_frame, rigid_error_columns
 
 import calib
-from calib import (
-    InvalidArgumentError,
-    Kind,
-    Measurement,
-    Parameter,
-    ParameterSet,
-    RankWarning,
-    analyze,
-    analyze_model,
-    from_lines,
-    identification_jacobian,
-    paper_parameters,
-)
+from calib import InvalidArgumentError, Measurement, RankWarning, analyze
 from calib.identification.identifiability import (
+    analyze_model,
     checked_selection,
     independent_columns,
     select_by_rank,
 )
+from calib.identification.jacobian import identification_jacobian
+from calib.identification.parameters import Kind, Parameter, ParameterSet, paper_parameters
+from calib.kinematics.mdh import from_lines
 
 MARKER = (0.011, 0.023, 0.037)
 

@@ -35,6 +35,11 @@ from calib import (
 from calib.cli.commands import main
 from calib.core.fileio import read_bytes_limited, read_text_limited
 from calib.exceptions import URDFError
+from calib.identification.identifiability import analyze_model
+from calib.identification.jacobian import complete_jacobian, identification_jacobian
+from calib.identification.parameters import complete_parameters, paper_parameters
+from calib.kinematics.mdh import from_lines
+from calib.kinematics.urdf_export import measurement_to_base, write_calibrated_urdf
 from calib.kinematics.urdf_xml import MAX_COORDINATE, MAX_URDF_BYTES
 
 DATA = Path(__file__).parent / "data"
@@ -169,9 +174,9 @@ def test_show_and_analyze_json_of_every_catalog_chain_are_strict_json(capfd):
 def test_from_lines_refuses_a_zero_direction_and_bad_arrays():
     p, u, tool = np.zeros((2, 3)), np.array([[0, 0, 1.0], [0, 0, 0]]), np.eye(4)
     with pytest.raises(InvalidArgumentError, match="direction 2 is zero"):
-        calib.from_lines(p, u, [0, 0], tool)
+        from_lines(p, u, [0, 0], tool)
     with pytest.raises(InvalidArgumentError, match="direction 1 is zero"):
-        calib.from_lines(p, [[0, 0, 1e-300], [1, 0, 0]], [0, 0], tool)
+        from_lines(p, [[0, 0, 1e-300], [1, 0, 0]], [0, 0], tool)
     good_u = [[0, 0, 1.0], [1, 0, 0]]
     bad_cases = [  # each refused for its own fault
         ((np.full((2, 3), np.nan), good_u, [0, 0], tool), "finite numbers, got NaN"),
@@ -185,7 +190,7 @@ def test_from_lines_refuses_a_zero_direction_and_bad_arrays():
     ]
     for args, why in bad_cases:
         with pytest.raises(InvalidArgumentError, match=why):
-            calib.from_lines(*args)
+            from_lines(*args)
 
 
 def test_nan_joint_values_through_the_api_are_errors():
@@ -197,9 +202,9 @@ def test_nan_joint_values_through_the_api_are_errors():
         lambda: chain.tool_placements(q),
         lambda: mdh.kinematics(q),
         lambda: mdh.forward(q),
-        lambda: calib.analyze_model(mdh, "paper", None, q),
-        lambda: calib.identification_jacobian(mdh, calib.paper_parameters(mdh), q),
-        lambda: calib.complete_jacobian(mdh, q),
+        lambda: analyze_model(mdh, "paper", None, q),
+        lambda: identification_jacobian(mdh, paper_parameters(mdh), q),
+        lambda: complete_jacobian(mdh, q),
         lambda: mdh.forward(np.full((2, 6), 1e300)),
     ]
     for call in calls:
@@ -361,18 +366,18 @@ def test_calibrated_export_of_a_file_with_undeclared_prefixes(tmp_path):
     path = write(tmp_path, two_joint_urdf(extra=GAZEBO, head=head))
     chain = load_chain(path, tool="tool")
     nominal = from_chain(chain)
-    pset = calib.complete_parameters(nominal)
+    pset = complete_parameters(nominal)
     delta = np.random.default_rng(3).normal(scale=1e-3, size=len(pset))
     calibrated = pset.apply(nominal, delta)
     out = tmp_path / "cal.urdf"
-    calib.write_calibrated_urdf(out, chain, nominal, calibrated)
+    write_calibrated_urdf(out, chain, nominal, calibrated)
     text = out.read_text()
     assert "<sensor:camera" in text and "<sensor:imageSize>640 480</sensor:imageSize>" in text
     assert text.startswith('<?xml version="1.0"?>\n' + head)
     # Pinocchio reads the export itself: its kinematics is the calibrated model's.
     q = own_random_q(chain.sigma, 10, seed=4)
     T = pin_tool_in_base(out, "base", "tool", q)
-    M = calib.measurement_to_base(nominal, calibrated)
+    M = measurement_to_base(nominal, calibrated)
     assert np.allclose(M @ T, calibrated.forward(q), atol=1e-9)
 
 

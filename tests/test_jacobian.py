@@ -12,14 +12,13 @@ from conftest import chain_of, mdh_of
 from pinref import own_random_q, pin_config, pin_frame
 
 import calib
-from calib import (
+from calib import Measurement
+from calib.identification.jacobian import complete_jacobian, identification_jacobian
+from calib.identification.parameters import (
     Kind,
-    Measurement,
     Parameter,
     ParameterSet,
-    complete_jacobian,
     complete_parameters,
-    identification_jacobian,
     paper_parameters,
 )
 

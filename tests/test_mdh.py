@@ -16,8 +16,10 @@ from conftest import ANALYSABLE, chain_of, mdh_of
 from pinref import own_random_q, pin_frame, rot, trans
 
 import calib
-from calib import PARALLEL_TOL, load_chain
+from calib import load_chain
 from calib.cli.commands import main
+from calib.identification.parameters import paper_parameters
+from calib.kinematics.mdh import PARALLEL_TOL
 
 DATA = Path(__file__).parent / "data"
 FK_TOL = 1e-10
@@ -346,7 +348,7 @@ def test_catalog_rounded_angles_stay_small(name):
 def test_mdh_model_is_a_value_object():
     mdh = mdh_of("aid")
     d_before = mdh.d.copy()
-    pset = calib.paper_parameters(mdh)
+    pset = paper_parameters(mdh)
     shifted = pset.apply(mdh, np.full(len(pset), 1e-3))
     assert np.array_equal(mdh.d, d_before)
     assert not np.array_equal(shifted.d, mdh.d)

@@ -21,13 +21,13 @@ from calib import (
     DataWarning,
     InvalidArgumentError,
     Measurements,
-    analyze_model,
     load_chain,
     read_measurements,
     simulate,
     write_measurements,
 )
 from calib.core.fileio import json_text, write_files_atomic
+from calib.identification.identifiability import analyze_model
 from calib.identification.jacobian import measured_point
 from calib.kinematics import so3
 from calib.measurements.csvfile import measurements_csv, parse_measurements

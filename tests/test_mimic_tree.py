@@ -22,12 +22,13 @@ import pytest
 from pinref import MimicTree
 
 import calib
-from calib import Measurements, analyze, from_tree, load_tree
+from calib import Measurements, analyze, from_tree
 from calib.calibration.entry import calibrate as calibrate_tree
 from calib.cli.commands import main
 from calib.design.constraints import Constraints
 from calib.design.design import design
 from calib.kinematics.catalog import resolve_urdf
+from calib.kinematics.tree import load_tree
 
 DATA = Path(__file__).parent / "data"
 PR2 = resolve_urdf("erd:pr2_description/urdf/pr2.urdf")

@@ -16,20 +16,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib import (
-    DataError,
-    calibrate,
-    calibrate_contact_chains,
-    load_chain,
-    load_robot,
-    simulate,
-    simulate_tree,
-)
+from calib import DataError, calibrate, load_chain, load_robot, simulate
 from calib.calibration.contact_checks import held_out_refusal
 from calib.calibration.contact_result import GapStats
+from calib.calibration.engine import calibrate_contact_chains
 from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main
 from calib.measurements.contact_campaign import simulate_contacts, write_contacts
+from calib.measurements.tree_campaign import simulate_tree
 
 TALOS = "talos_full_v2.urdf"
 LEFT = ("left_sole_link", "gripper_left_base_link")

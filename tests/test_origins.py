@@ -21,6 +21,7 @@ from calib.cli.commands import main
 from calib.kinematics.origins import origins_yaml
 from calib.kinematics.tree import load_tree
 from calib.measurements.csvfile import write_measurements
+from calib.measurements.tree_campaign import simulate_tree
 
 XACRO = Path(__file__).parent / "data" / "yarm.urdf.xacro"
 
@@ -86,7 +87,7 @@ def test_chain_origins_in_the_xacro_reproduce_the_calibrated_urdf(tmp_path):
 def test_tree_origins_in_the_xacro_reproduce_the_calibrated_urdf(tmp_path):
     nominal = expand(tmp_path, None, "yarm.urdf")
     tree = load_tree(nominal, "base_link", ["tool_a", "tool_b"])
-    campaign = calib.simulate_tree(tree, 40, markers=[0.01, 0.0, 0.02], seed=2)
+    campaign = simulate_tree(tree, 40, markers=[0.01, 0.0, 0.02], seed=2)
     result = calibrate_tree(tree, campaign.measurements, params="complete")
     (tmp_path / "cal.urdf").write_bytes(result.urdf())
     doc = result.origins()

@@ -22,7 +22,8 @@ from pixel_setups import INTRINSICS, grid, setup
 from test_contact_chains import central_differences
 
 import calib
-from calib import Problem, Term, calibrate, calibrate_contact_chains, load_robot
+from calib import Problem, Term, calibrate, load_robot
+from calib.calibration.engine import calibrate_contact_chains
 from calib.calibration.engine_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.pixel_chain import PixelCamera, PixelData, Unknowns, pixel_part, pixel_rows
 from calib.calibration.pixel_chain_result import PixelChain

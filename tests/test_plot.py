@@ -15,6 +15,7 @@ from calib.cli.commands import main
 from calib.kinematics.catalog import resolve_urdf
 from calib.kinematics.tree import load_tree
 from calib.measurements.csvfile import write_measurements
+from calib.measurements.tree_campaign import simulate_tree
 
 TALOS = "talos_full_v2.urdf"
 LEFT = ("left_sole_link", "gripper_left_base_link")
@@ -68,7 +69,7 @@ def test_chain_figure_holds_the_reports_errors_fitted_and_held_out():
 def test_tree_figure_holds_the_reports_errors():
     urdf = resolve_urdf("erd:talos_data/robots/talos_reduced.urdf")
     tree = load_tree(urdf, "base_link", ("wrist_left_ft_tool_link", "wrist_right_ft_tool_link"))
-    campaign = calib.simulate_tree(tree, 30, markers=[0.05, 0.02, 0.1], noise_mm=0.05, seed=2)
+    campaign = simulate_tree(tree, 30, markers=[0.05, 0.02, 0.1], noise_mm=0.05, seed=2)
     result = calibrate_tree(tree, campaign.measurements, params="complete", holdout=0.2, seed=1)
     fig = result.plot()
     doc = result.to_dict()
@@ -141,7 +142,7 @@ def test_several_terms_figure_holds_each_terms_errors():
 def test_refused_model_writes_its_report_and_plot_but_no_urdf_nor_origins(tmp_path, capsys):
     """No geometric error and 2 mm of noise: the complete tree model only overfits (refused)."""
     tree = calib.load_robot("bolt")
-    camp = calib.simulate_tree(tree, 20, markers=[0.01, 0, 0.02], error_mm=0, error_mrad=0,
+    camp = simulate_tree(tree, 20, markers=[0.01, 0, 0.02], error_mm=0, error_mrad=0,
                                noise_mm=2, seed=0)  # fmt: skip
     data = tmp_path / "m.csv"
     write_measurements(data, camp.measurements)

@@ -14,19 +14,11 @@ import re
 import numpy as np
 import pytest
 
-from calib import (
-    PixelObservations,
-    Problem,
-    Term,
-    analyze,
-    calibrate,
-    load_chain,
-    simulate,
-    simulate_contacts,
-)
+from calib import Problem, Term, analyze, calibrate, load_chain, simulate, simulate_contacts
 from calib.calibration.outliers import Outlier, set_aside_note
 from calib.core.words import counted, noun
 from calib.exceptions import DataError, InvalidArgumentError
+from calib.measurements.pixels import PixelObservations
 
 CHAIN = load_chain("ur5")
 

@@ -14,10 +14,11 @@ from hypothesis import strategies as st
 from test_properties import PinReference, chains, random_q
 
 import calib
-from calib import from_lines, from_tree, load_tree
+from calib import from_tree
 from calib.exceptions import InvalidArgumentError
 from calib.identification.parameters import Kind, Parameter, ParameterSet, complete_parameters
-from calib.kinematics.mdh import RIGID_TOL
+from calib.kinematics.mdh import RIGID_TOL, from_lines
+from calib.kinematics.tree import load_tree
 
 FIELDS = ("beta", "alpha", "d", "theta", "r", "y")
 

@@ -1,8 +1,8 @@
 """Property tests on random serial chains with deliberately nasty geometry.
 
-Each chain is a list of joint lines (point, direction, revolute/prismatic) and a tool pose,
-all in the base frame. calib converts it with ``calib.from_lines``; the independent reference
-is a Pinocchio model built here joint by joint (JointModelRevoluteUnaligned /
+Each chain is a list of joint lines (point, direction, revolute/prismatic) and a tool pose, all in
+the base frame. calib converts it with ``calib.kinematics.mdh.from_lines``; the independent
+reference is a Pinocchio model built here joint by joint (JointModelRevoluteUnaligned /
 JointModelPrismaticUnaligned), which knows nothing about DH.
 """
 
@@ -22,7 +22,10 @@ from hypothesis import strategies as st
 from pinref import rigid_error_columns
 
 import calib
-from calib import Measurement, analyze_model, complete_jacobian, from_lines
+from calib import Measurement
+from calib.identification.identifiability import analyze_model
+from calib.identification.jacobian import complete_jacobian, identification_jacobian
+from calib.kinematics.mdh import from_lines
 
 RELATIONS = (
     "generic",
@@ -268,7 +271,7 @@ def test_base_count_is_the_numerical_rank(ch, measure, params):
     q = random_q(ch, N_CONFIGS, seed=7)
     marker = (0.011, 0.023, 0.037) if measure == "position" else None
     res = analyse(mdh, params, q, measure, marker)
-    W = calib.identification_jacobian(mdh, res.params, q, res.measurement)
+    W = identification_jacobian(mdh, res.params, q, res.measurement)
     R = scipy.linalg.qr(W, mode="r", pivoting=True)[0]
     diag = np.abs(np.diag(R))
     rank = int(np.sum(diag > W.shape[0] * np.finfo(float).eps * diag[0]))

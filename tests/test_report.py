@@ -27,17 +27,17 @@ from calib import (
     Problem,
     Term,
     calibrate,
-    calibrate_contact_chains,
     load_chain,
     load_robot,
     read_measurements,
     simulate,
     simulate_pixels,
-    simulate_tree,
 )
+from calib.calibration.engine import calibrate_contact_chains
 from calib.calibration.entry import calibrate_contacts
 from calib.cli.commands import main
 from calib.measurements.contact_campaign import simulate_contacts
+from calib.measurements.tree_campaign import simulate_tree
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
 

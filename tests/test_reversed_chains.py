@@ -21,24 +21,21 @@ from pinref import PathRef, own_random_q, rot, trans
 import calib
 from calib import (
     InvalidArgumentError,
-    Kind,
     Measurement,
-    Parameter,
-    ParameterSet,
     analyze,
     calibrate,
-    calibrated_urdf,
-    complete_parameters,
     from_chain,
-    identification_jacobian,
     load_chain,
-    load_tree,
-    measurement_to_base,
     simulate,
 )
 from calib.cli.commands import main
 from calib.exceptions import ChainError
+from calib.identification.jacobian import identification_jacobian
+from calib.identification.parameters import Kind, Parameter, ParameterSet, complete_parameters
 from calib.kinematics.catalog import catalog_entry
+from calib.kinematics.mdh import from_lines
+from calib.kinematics.tree import load_tree
+from calib.kinematics.urdf_export import calibrated_urdf, measurement_to_base
 
 FK_TOL = 1e-10
 
@@ -143,8 +140,8 @@ def test_bad_signs_are_refused():
     p, u = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]]), np.array([[0.0, 0.0, 1.0]] * 2)
     for sign in ([1, 0], [1], [2, -1], [1, float("nan")]):
         with pytest.raises(InvalidArgumentError, match="sign"):
-            calib.from_lines(p, u, [0, 0], np.eye(4), sign=sign)
-    mdh = calib.from_lines(p, u, [0, 0], np.eye(4), sign=[-1, 1])
+            from_lines(p, u, [0, 0], np.eye(4), sign=sign)
+    mdh = from_lines(p, u, [0, 0], np.eye(4), sign=[-1, 1])
     with pytest.raises(InvalidArgumentError, match="sign"):
         mdh.replace(sign=np.array([1, 1, 1]))
 

@@ -1,11 +1,11 @@
 """The robot measuring itself as one term among others: a head camera measures the hand.
 
-A measured term of :func:`calib.calibrate_contact_chains` (``Measurements`` in the chain's
-base frame, a frame on the robot) fitted with contact chains: one truth, one fit, one URDF.
-Checked by routes that share nothing with the fit: central differences of the rows, Pinocchio's
-forward kinematics of the written URDF, and the rank of central differences of Pinocchio's
-placements under a small twist of every joint placement, of the camera frame's placement, of
-the planes and contact frames (Pinocchio alone).
+A measured term of :func:`calib.calibration.engine.calibrate_contact_chains` (``Measurements`` in
+the chain's base frame, a frame on the robot) fitted with contact chains: one truth, one fit, one
+URDF. Checked by routes that share nothing with the fit: central differences of the rows,
+Pinocchio's forward kinematics of the written URDF, and the rank of central differences of
+Pinocchio's placements under a small twist of every joint placement, of the camera frame's
+placement, of the planes and contact frames (Pinocchio alone).
 """
 
 from __future__ import annotations
@@ -20,8 +20,9 @@ from contact_scorer import configurations, plane_gaps, relative_placements
 from contact_states import plane_state
 from test_contact_chains import central_differences, moved_chains
 
-from calib import calibrate_contact_chains, load_chain, load_robot, simulate
+from calib import load_chain, load_robot, simulate
 from calib.calibration.chain_registration import MeasuredState
+from calib.calibration.engine import calibrate_contact_chains
 from calib.calibration.engine_model import ChainsData, ChainsModel, ChainsState
 from calib.calibration.measured_view import MeasuredChain
 from calib.calibration.model import registration_state

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import calib
+from calib.calibration import residual_stats
 from calib.design.constraints import Constraints, filter_candidates
 from calib.design.design import candidate_configurations, least_i
 from calib.design.observability import observation_model, reference
@@ -50,7 +51,7 @@ def heldout_mm(chain, q, measure, seed):
     ref = candidate_configurations(chain, 100, seed=123)
     truth = calib.simulate(chain, ref, measure, noise_mm=0.0, seed=seed).measurements
     result = calib.calibrate(chain, data, params="complete")
-    return 1e3 * calib.residual_stats(result, truth).position_rms
+    return 1e3 * residual_stats(result, truth).position_rms
 
 
 def test_one_design_beats_random_sets_on_every_index():
@@ -115,7 +116,7 @@ def test_payoff_after_the_default_calibration(robots):
             for kind, q in (("designed", d.q), ("random", chain.random_configurations(K, seed))):
                 data = calib.simulate(chain, q, "position", MARKER, noise_mm=NOISE_MM, seed=seed)
                 result = calib.calibrate(chain, data.measurements, marker=MARKER)
-                measured[kind].append(1e3 * calib.residual_stats(result, truth).position_rms)
+                measured[kind].append(1e3 * residual_stats(result, truth).position_rms)
                 W = d.model.jacobian(q).reshape(-1, d.model.b)
                 pred[kind].append(NOISE_MM * np.sqrt(np.trace(L @ np.linalg.inv(W.T @ W))))
             if seed == 0:

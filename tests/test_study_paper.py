@@ -15,6 +15,8 @@ import numpy as np
 import pytest
 
 import calib
+from calib.identification.identifiability import analyze_model
+from calib.identification.parameters import Kind, Parameter, ParameterSet, paper_parameters
 
 # Table 1 of the paper, rows j = 0..7 (frame 0 = base, frame 7 = end effector).
 TABLE1_ALPHA = [0, 0, 90, 0, -90, 90, -90, 0]  # [deg]
@@ -87,11 +89,9 @@ def test_complete_model_reaches_everett_25(aid, paper):
 
 def test_paper_set_plus_beta1_gives_24(aid):
     chain, mdh = aid
-    paper_set = calib.paper_parameters(mdh)
-    plus_beta1 = calib.ParameterSet(
-        "paper + beta1", (*paper_set.parameters, calib.Parameter(1, calib.Kind.BETA))
-    )
-    res24 = calib.analyze_model(
+    paper_set = paper_parameters(mdh)
+    plus_beta1 = ParameterSet("paper + beta1", (*paper_set.parameters, Parameter(1, Kind.BETA)))
+    res24 = analyze_model(
         mdh,
         plus_beta1,
         calib.Measurement.of("position"),

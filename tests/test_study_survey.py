@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import calib
+from calib.kinematics.tree import load_tree
 from calib.outputs.sweep import sweep
 
 pytestmark = pytest.mark.slow
@@ -110,7 +111,7 @@ def test_trees_count_4r_2p_6t_and_sharing_removes_the_repeats(pose_rows):
     trees = [r for r in pose_rows if r.error is None and r.tools > 1]
     assert len(trees) >= 20
     for r in trees:
-        tree = calib.load_tree(r.robot)
+        tree = load_tree(r.robot)
         alone = [
             4 * int(np.sum(tree.sigma[p] == 0)) + 2 * int(np.sum(tree.sigma[p] == 1)) + 6
             for p in tree.paths
@@ -125,7 +126,7 @@ def test_trees_count_4r_2p_6t_and_sharing_removes_the_repeats(pose_rows):
 
 
 def test_talos_limbs_alone_against_the_whole_tree():
-    talos = calib.load_tree("talos")
+    talos = load_tree("talos")
     alone = {
         t: calib.analyze("talos", tool=t, measure="pose", params="complete").n_base
         for t in talos.tool_frames

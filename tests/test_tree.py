@@ -16,28 +16,25 @@ from conftest import TREES
 from pinref import PinTree, own_random_q, rot, trans
 
 import calib
-from calib import (
-    InvalidArgumentError,
-    Measurement,
-    analyze,
-    analyze_model,
-    from_chain,
-    from_tree,
-    identification_jacobian,
-    load_chain,
-    load_tree,
+from calib import InvalidArgumentError, Measurement, analyze, from_chain, from_tree, load_chain
+from calib.cli.commands import main
+from calib.exceptions import ChainError
+from calib.identification.identifiability import analyze_model
+from calib.identification.jacobian import identification_jacobian
+from calib.identification.parameters import paper_parameters
+from calib.identification.tree_jacobian import (
     tree_complete_jacobian,
     tree_jacobian,
     tree_parameters,
 )
-from calib.cli.commands import main
-from calib.exceptions import ChainError
+from calib.kinematics.catalog import CatalogEntry
+from calib.kinematics.tree import load_tree
 
 FK_TOL = 1e-10
 MARKER = (0.011, 0.023, 0.037)
 
 
-def entry(name: str) -> calib.CatalogEntry:
+def entry(name: str) -> CatalogEntry:
     return next(e for e in calib.catalog() if e.name == name)
 
 
@@ -157,7 +154,7 @@ def test_one_tool_tree_is_the_chain_row_for_row(name, tool):
     assert not model.gamma.any() and not model.b.any()
     q = chain.random_configurations(20, 1)
     assert np.array_equal(tree.random_configurations(20, 1), q)
-    pset, tset = calib.paper_parameters(mdh), tree_parameters(model, "paper")
+    pset, tset = paper_parameters(mdh), tree_parameters(model, "paper")
     assert pset.names == tset.names
     assert np.array_equal(identification_jacobian(mdh, pset, q), tree_jacobian(model, tset, q))
     a = quiet(analyze, chain, measure="pose", params="complete")

@@ -24,7 +24,10 @@ from hypothesis import strategies as st
 from pinref import PinTree, own_random_q
 
 import calib
-from calib import Measurement, analyze, from_tree, load_tree, tree_jacobian
+from calib import Measurement, analyze, from_tree
+from calib.identification.identifiability import analyze_model
+from calib.identification.tree_jacobian import tree_jacobian
+from calib.kinematics.tree import load_tree
 
 RELATIONS = ("generic", "parallel", "intersecting", "coincident", "perpendicular_intersecting")
 MARKER = (0.011, 0.023, 0.037)
@@ -244,7 +247,7 @@ def test_base_count_is_the_numerical_rank(tr, measure, params):
     q = own_random_q(tree.sigma, 25, seed=3)
     meas = Measurement.of(measure, MARKER)
     model = from_tree(tree).idealized()
-    res = quiet(calib.analyze_model, model, params, meas, q)
+    res = quiet(analyze_model, model, params, meas, q)
     W = tree_jacobian(model, res.params, q, meas)
     R = scipy.linalg.qr(W, mode="r", pivoting=True)[0]
     diag = np.abs(np.diag(R))

@@ -14,17 +14,9 @@ import pytest
 import yourdfpy
 from conftest import chain_of, mdh_of
 
-from calib import (
-    CalibError,
-    calibrate,
-    calibrated_urdf,
-    complete_parameters,
-    from_chain,
-    load_chain,
-    measurement_to_base,
-    simulate,
-    write_calibrated_urdf,
-)
+from calib import CalibError, calibrate, from_chain, load_chain, simulate
+from calib.identification.parameters import complete_parameters
+from calib.kinematics.urdf_export import calibrated_urdf, measurement_to_base, write_calibrated_urdf
 
 DATA = Path(__file__).parent / "data"
 CHAINS = ["ur5", "panda", "stanford", str(DATA / "negative_axes.urdf")]

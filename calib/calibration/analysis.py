@@ -160,7 +160,8 @@ def analyze(
 
     Returns:
         A robot's :class:`~calib.identification.identifiability.Identifiability` (what
-        ``calib analyze`` prints), or a problem's :class:`ProblemAnalysis`.
+        ``calib analyze`` prints), or a problem's
+        :class:`~calib.calibration.analysis.ProblemAnalysis`.
 
     Raises:
         InvalidArgumentError: A problem given with other arguments; a bad argument.

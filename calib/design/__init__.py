@@ -16,9 +16,9 @@ May import: :mod:`calib.calibration`, :mod:`calib.measurements`, :mod:`calib.ide
 :mod:`calib.kinematics` and the bottom modules.
 """
 
-import importlib
-import sys
-import types
+import importlib as _importlib  # private: dir(calib.design) is its modules
+import sys as _sys
+import types as _types
 
 __all__: list[str] = []
 
@@ -37,18 +37,18 @@ _MODULES = (
 """The package's modules: attributes of ``calib.design`` once used (imported then)."""
 
 
-class _Design(types.ModuleType):
+class _Design(_types.ModuleType):
     """This package, callable as its design function."""
 
     def __call__(self, *args, **kwargs):
         """:func:`calib.design.design.design` (its arguments and result)."""
         return self.design.design(*args, **kwargs)
 
-    def __getattr__(self, name: str) -> types.ModuleType:
+    def __getattr__(self, name: str) -> _types.ModuleType:
         """A module of the package, imported when first used (``calib.design.constraints``)."""
         if name not in _MODULES:
             raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-        return importlib.import_module(f".{name}", __name__)
+        return _importlib.import_module(f".{name}", __name__)
 
     def __dir__(self) -> list[str]:
         """The package's names and modules (tab completion)."""
@@ -62,4 +62,4 @@ class _Design(types.ModuleType):
         return inspect.signature(self.design.design)
 
 
-sys.modules[__name__].__class__ = _Design
+_sys.modules[__name__].__class__ = _Design

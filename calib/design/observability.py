@@ -216,7 +216,7 @@ def observation_model(
 ) -> ObservationModel:
     """The observation model of a calibration of a chain or a tree.
 
-    A tree (several tools, :func:`calib.calibrate_tree`) is measured at one point per tool
+    A tree (several tools, :func:`calib.calibrate`) is measured at one point per tool
     and configuration, in position: its rows are 3 per tool, its columns the frame, one
     marker per tool and the tree's base parameters (``complete``) or none (``frames``).
 

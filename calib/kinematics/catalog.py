@@ -67,7 +67,7 @@ class CatalogEntry:
 
     @property
     def is_tree(self) -> bool:
-        """True when the entry names several tools (a tree, see :func:`calib.load_tree`)."""
+        """True when the entry names several tools (a tree, see :func:`calib.load_robot`)."""
         return isinstance(self.tool, tuple)
 
     @property

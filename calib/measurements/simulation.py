@@ -203,7 +203,8 @@ def simulate(
     Raises:
         InvalidArgumentError: A bad argument.
     """
-    chain = chain_argument(chain, "simulate", ": a tree's campaign is calib.simulate_tree")
+    tree_route = ": a tree's campaign is calib.measurements.tree_campaign.simulate_tree"
+    chain = chain_argument(chain, "simulate", tree_route)
     markers = [campaign_kind(measure, mk, TOUCHES) for mk in _several(marker)]
     measurement = markers[0]
     given = isinstance(configs, np.ndarray | list | tuple)
