@@ -70,7 +70,8 @@ def test_simulate_by_default_writes_points_design_counts_them(tmp_path, capsys):
 @pytest.mark.parametrize("robot", ["ur5", "panda", "aid", "talos_left_arm"])
 def test_python_and_command_line_defaults_print_the_same_counts(robot, capsys):
     """``calib.analyze(robot)`` and ``calib analyze ROBOT`` assume one instrument and one set:
-    the same report (JSON, timings aside) and the same printed text."""
+    the same report (JSON, timings aside) and the same printed text (the command line's
+    closing ``next:`` line, its commands, aside)."""
     import calib
     from calib.identification.report import analysis_text
 
@@ -82,7 +83,9 @@ def test_python_and_command_line_defaults_print_the_same_counts(robot, capsys):
     assert mine == json.loads(json.dumps(mine)) and mine["n_base"] == cli["n_base"]
     assert mine == cli
     assert main(["analyze", robot]) == 0
-    assert capsys.readouterr().out.rstrip("\n") == analysis_text(res).rstrip("\n")
+    *text, last = capsys.readouterr().out.rstrip("\n").splitlines()
+    assert last.startswith(f"next: calib design {robot} ")
+    assert "\n".join(text) == analysis_text(res).rstrip("\n")
 
 
 def test_python_simulate_and_design_default_to_the_command_lines_instrument():
