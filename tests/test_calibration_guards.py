@@ -301,10 +301,10 @@ def test_validation_file_that_is_the_data_file_or_holds_its_rows_is_refused(file
 def test_a_rounded_copy_of_the_data_is_refused_as_validation_but_a_remeasurement_is_not():
     """The data written again with 6 decimals is the data (before, rows were compared
     exactly and the copy was scored as held out); the same postures measured again (10 um
-    noise) are held-out rows."""
+    noise) are held-out rows, with a warning that they are no unseen postures."""
     import dataclasses
 
-    from calib import DataError, calibrate, load_robot, simulate
+    from calib import DataError, DataWarning, calibrate, load_robot, simulate
 
     chain = load_robot("ur5")
     data = simulate(chain, 30, noise_mm=0.01, seed=4).measurements
@@ -315,7 +315,8 @@ def test_a_rounded_copy_of_the_data_is_refused_as_validation_but_a_remeasurement
         calibrate(chain, data, validate=rounded)
     noise = np.random.default_rng(5).normal(scale=1e-5, size=data.position.shape)
     again = dataclasses.replace(data, position=data.position + noise, source="again.csv")
-    assert calibrate(chain, data, validate=again).accepted
+    with pytest.warns(DataWarning, match="30 of the 30 validation rows are at postures of"):
+        assert calibrate(chain, data, validate=again).accepted
 
 
 def test_validation_data_get_the_diagnosis(files, tmp_path):

@@ -11,12 +11,13 @@ import dataclasses
 import json
 import math
 import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from calib import DataError, calibrate, load_chain, load_robot, simulate
+from calib import DataError, DataWarning, calibrate, load_chain, load_robot, simulate
 from calib.calibration.contact_checks import held_out_refusal
 from calib.calibration.contact_result import GapStats
 from calib.calibration.engine import calibrate_contact_chains
@@ -80,6 +81,22 @@ def test_tree_and_chain_validation_rows_of_the_data_are_refused():
     data = simulate(chain, 30, seed=1, measure="pose").measurements
     with pytest.raises(DataError, match="held out must mean held out"):
         calibrate(chain, data, validate=data)
+
+
+def test_validation_rows_at_postures_of_the_data_are_warned():
+    """A random campaign and a noise-free check campaign of one seed share their first
+    configurations (the same draws): no row is a copy, but the check scores seen postures."""
+    chain = load_chain("ur5")
+    data = simulate(chain, 30, seed=1, noise_mm=0.05).measurements
+    check = simulate(chain, 60, seed=1).measurements
+    assert np.array_equal(data.q, check.q[:30])  # the shared draws
+    assert not np.allclose(data.position, check.position[:30], atol=1e-6, rtol=0)  # the noise
+    with pytest.warns(DataWarning, match="30 of the 60 validation rows are at postures of"):
+        calibrate(chain, data, validate=check)
+    unseen = check.subset(np.arange(60) >= 30)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataWarning)
+        calibrate(chain, data, validate=unseen)
 
 
 def test_held_out_orientation_worse_refuses_a_pose_calibration():

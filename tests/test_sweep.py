@@ -236,3 +236,19 @@ def test_counts_figure_of_a_few_robots_keeps_long_panel_titles_inside(capsys):
     pixels = imread(io.BytesIO(figure_bytes(counts_figure(rows))))
     assert pixels.shape[1] < 800  # the narrow case
     assert (pixels[:, -3:, :3] == 1.0).all()  # white: nothing drawn at the right edge
+
+
+def test_the_survey_page_lists_the_json_rows_fields(capsys):
+    """docs/howto/survey.md names every field of `--json`'s object and rows, in order, and
+    says that `--json` prints (a file name after it is read as a URDF)."""
+    page = (Path(__file__).parents[1] / "docs" / "howto" / "survey.md").read_text()
+    assert main(["sweep", "--robots", "twodof", "--configs", "20", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    listed = " ".join(page.split("For a figure of your own", 1)[1].split("\n\n", 1)[0].split())
+    top = [f"`{k}`" for k in data]
+    assert f"the JSON is one object, {', '.join(top[:-1])} and {top[-1]};" in listed
+    fields = [f"`{k}`" for k in data["rows"][0]]
+    assert f"{', '.join(fields[:-1])} and {fields[-1]}." in listed.replace(
+        " (null where no formula applies)", ""
+    )
+    assert "`--json` prints" in " ".join(page.split())

@@ -12,12 +12,12 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..core.words import counted
-from ..exceptions import DataError, InvalidArgumentError
+from ..exceptions import DataError, InvalidArgumentError, warn_user
 from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
-from ..measurements.data import Measurements
+from ..measurements.data import DataWarning, Measurements
 from ..measurements.pixels import PixelObservations
-from ..measurements.postures import posture_groups
+from ..measurements.postures import POSTURE_TOL, posture_groups
 from .diagnosis import suspect
 from .residuals import ResidualStats
 from .solve import FitState
@@ -175,6 +175,26 @@ def check_held_out(data, held) -> None:
             f"{int(repeated.sum())} of the {held.m} validation rows are rows of the data "
             f"(row {file_lines(held)[i]} is row {file_lines(data)[j]} of {data.source}): held out "
             f"must mean held out",
+        )
+    _warn_seen_postures(data, held)
+
+
+def _warn_seen_postures(data, held) -> None:
+    """Warn of validation rows at postures of the data, measured again (not unseen postures).
+
+    A same seed's simulations draw the same first configurations: a random campaign and a
+    check campaign of its seed share them, and the check would score seen postures.
+    """
+    a, b = np.asarray(data.q, dtype=float), np.asarray(held.q, dtype=float)
+    if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1] or not len(a) or not len(b):
+        return
+    gap, _ = cKDTree(a).query(b, p=np.inf, distance_upper_bound=POSTURE_TOL)
+    seen = int(np.isfinite(gap).sum())
+    if seen:
+        warn_user(
+            f"{held.source}: {seen} of the {len(b)} validation rows are at postures of the "
+            f"data (the same joint values): their errors are not those of unseen postures",
+            DataWarning,
         )
 
 

@@ -153,6 +153,16 @@ def marker_count(
 ) -> MarkerCount:
     """Count what K points measured per configuration identify, frame and markers free.
 
+    Args:
+        chain: The chain.
+        k: Number K of points measured per configuration.
+        measure: ``position`` (the points) or ``pose`` (the tool's orientation too).
+        configs: Random configurations of the count.
+        seed: Seed of the configurations.
+
+    Returns:
+        The identifiable parameters, the coordinates held and the theory.
+
     Raises:
         InvalidArgumentError: Not a chain (a tree: the count is for one), a measure other than
             position or pose, or a count too large.
@@ -224,7 +234,7 @@ def sweep(
             analysed as ``extra``'s are.
         extra: URDF paths (default frames) analysed after the catalog.
         measure: ``position`` (default: a point measured, as ``calib sweep`` and
-            :func:`~calib.identification.identifiability.analyze`), ``pose``, rows
+            :func:`calib.analyze`), ``pose``, rows
             (``x,y,rz``) or a contact (``plane``, ``plane-point``, ``fixed-point``,
             ``fixed-pose``; a tree or a chain through mimic joints is then a row with its
             reason).
@@ -232,7 +242,7 @@ def sweep(
         configs: Random configurations per chain.
         seed: Seed of the configurations.
         progress: Wraps the iterable of jobs (e.g. a progress bar).
-        params: Set the verdict is about: ``paper`` (default, :data:`VERDICT_SET`, as
+        params: Set the verdict is about: ``paper`` (default, ``VERDICT_SET``, as
             ``calib sweep``) or ``complete``. Unlike ``analyze``'s default (``complete``): the
             complete set reaches the rank on every chain, so a verdict on it says nothing;
             each row has the counts of both sets whatever the verdict's.
