@@ -112,8 +112,16 @@ def _opencv(python: Path, folder: Path, B, obs, chain, eye_in_hand: bool) -> dic
     if eye_in_hand:  # the chain runs hand -> base: the gripper in the base is its inverse
         R, t = np.transpose(R, (0, 2, 1)), -np.einsum("nji,nj->ni", R, t)
     path = folder / "peer.npz"
-    np.savez(path, object=B, pixels=obs.pixels.reshape(-1, k, 2), K=INTRINSICS.camera_matrix,
-             dist=INTRINSICS.distortion, R_g2b=R, t_g2b=t, eye_in_hand=eye_in_hand)  # fmt: skip
+    np.savez(
+        path,
+        object=B,
+        pixels=obs.pixels.reshape(-1, k, 2),
+        K=INTRINSICS.camera_matrix,
+        dist=INTRINSICS.distortion,
+        R_g2b=R,
+        t_g2b=t,
+        eye_in_hand=eye_in_hand,
+    )
     out = subprocess.run([str(python), str(PEER), str(path)], capture_output=True, text=True)
     if out.returncode:
         raise SystemExit(f"handeye_peer.py failed: {out.stderr.strip()[-300:]}")
@@ -143,8 +151,9 @@ def _run(case: str, python: Path | None, folder: Path) -> tuple[list[list[str]],
         )
         guess = _target(B, M @ off)
         for noise in NOISE_PX:
-            obs = simulate_pixels(chain, "cam", C, INTRINSICS, truth_target, q, noise_px=noise,
-                                  seed=seed)  # fmt: skip
+            obs = simulate_pixels(
+                chain, "cam", C, INTRINSICS, truth_target, q, noise_px=noise, seed=seed
+            )
             if obs.m != IMAGES * len(B):  # a corner pushed out of the image by the noise
                 continue
             camera = PixelCamera("cam", chain.base_frame, INTRINSICS, None)
@@ -156,10 +165,16 @@ def _run(case: str, python: Path | None, folder: Path) -> tuple[list[list[str]],
                 for method, T in peer.items():
                     errors.setdefault((noise, method), []).append(_errors(T, C))
     lines = [
-        [case, f"{noise:g}", method, f"{np.median([e[0] for e in v]):.3f}",
-         f"{np.median([e[1] for e in v]):.3f}", str(len(v))]
+        [
+            case,
+            f"{noise:g}",
+            method,
+            f"{np.median([e[0] for e in v]):.3f}",
+            f"{np.median([e[1] for e in v]):.3f}",
+            str(len(v)),
+        ]
         for (noise, method), v in errors.items()
-    ]  # fmt: skip
+    ]
     return lines, version
 
 
@@ -173,8 +188,11 @@ def main() -> None:
             lines, version = _run(case, python, Path(folder))
             rows += lines
     print(f"{IMAGES} images per seed, {SEEDS} seeds; OpenCV {version or '(not run)'}")
-    print(table(["set-up", "noise [px]", "method", "rotation [mrad]", "translation [mm]",
-                 "runs"], rows))  # fmt: skip
+    print(
+        table(
+            ["set-up", "noise [px]", "method", "rotation [mrad]", "translation [mm]", "runs"], rows
+        )
+    )
 
 
 if __name__ == "__main__":

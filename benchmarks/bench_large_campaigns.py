@@ -42,8 +42,9 @@ def markers_csv(path: Path, m: int, k: int) -> None:
     points = F[:, None, :3, 3] + np.einsum("mij,kj->mki", F[:, :3, :3], markers)
     points += rng.normal(0.0, 5e-5, points.shape)
     header = [*chain.joint_names, *(f"{a}{i + 1}" for i in range(k) for a in "xyz")]
-    np.savetxt(path, np.c_[q, points.reshape(m, -1)], delimiter=",", header=",".join(header),
-               comments="")  # fmt: skip
+    np.savetxt(
+        path, np.c_[q, points.reshape(m, -1)], delimiter=",", header=",".join(header), comments=""
+    )
 
 
 def cpu_s(args: list[str]) -> tuple[float, int]:

@@ -60,9 +60,14 @@ def main() -> None:
             wall, cpu = median_times_ms(run, REPEATS)
             held = pixels(result, "held_out")
             rows.append(
-                [name, obs.m, result.unknowns, f"{wall / 1e3:.2f} / {cpu / 1e3:.2f}",
-                 f"{held['reprojection_rms_px']:.3f}"]
-            )  # fmt: skip
+                [
+                    name,
+                    obs.m,
+                    result.unknowns,
+                    f"{wall / 1e3:.2f} / {cpu / 1e3:.2f}",
+                    f"{held['reprojection_rms_px']:.3f}",
+                ]
+            )
     print(table(["set-up", "pixels", "determined", "wall / CPU [s]", "held-out rms [px]"], rows))
 
 

@@ -58,10 +58,24 @@ def contact_file(folder: Path, touches: int, planes: int) -> Path:
     """A simulated plane campaign of TALOS sole to gripper."""
     path = folder / f"talos_{touches}_{planes}.csv"
     subprocess.run(
-        [str(CALIB), "simulate", *TALOS, "--measure", "plane", "--configs", str(touches),
-         "--contacts", str(planes), "--noise-mrad", "0.01", "--out", str(path)],
-        check=True, capture_output=True,
-    )  # fmt: skip
+        [
+            str(CALIB),
+            "simulate",
+            *TALOS,
+            "--measure",
+            "plane",
+            "--configs",
+            str(touches),
+            "--contacts",
+            str(planes),
+            "--noise-mrad",
+            "0.01",
+            "--out",
+            str(path),
+        ],
+        check=True,
+        capture_output=True,
+    )
     return path
 
 
@@ -100,8 +114,18 @@ def main() -> None:
         for touches, planes in ((20000, 1), (2000, 500)):
             data = contact_file(folder, touches, planes)
             for params in ("complete", "auto"):
-                args = ["calibrate", *TALOS, "--measure", "plane", "--data", str(data),
-                        "--params", params, "--out", str(folder / "out.urdf")]  # fmt: skip
+                args = [
+                    "calibrate",
+                    *TALOS,
+                    "--measure",
+                    "plane",
+                    "--data",
+                    str(data),
+                    "--params",
+                    params,
+                    "--out",
+                    str(folder / "out.urdf"),
+                ]
                 name = f"contacts: {touches} touches of {planes} plane(s), params {params}"
                 rows.append([name, *medians(args)])
                 print(rows[-1], flush=True)

@@ -68,8 +68,11 @@ def child(path: Path, run: bool) -> tuple[float, float, str, float]:
     tic = time.perf_counter()
     out = subprocess.run(
         [sys.executable, "-c", CHILD, str(path), "1" if run else "0"],
-        capture_output=True, text=True, check=True, env=os.environ,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        check=True,
+        env=os.environ,
+    )
     whole = time.perf_counter() - tic
     wall, rss, winner = json.loads(out.stdout.strip().splitlines()[-1])
     return wall, rss / 1024.0, winner, whole

@@ -76,9 +76,12 @@ def main() -> None:
             print(f"held-out RMS, params={params} (noise {NOISE_MM} mm, joints {NOISE_MRAD} mrad)")
             for name, idx in sets.items():
                 r = calibrate_contact_chains(
-                    [nominal[i] for i in idx], [data[i] for i in idx], params=params,
-                    holdout=0.25, seed=0,
-                )  # fmt: skip
+                    [nominal[i] for i in idx],
+                    [data[i] for i in idx],
+                    params=params,
+                    holdout=0.25,
+                    seed=0,
+                )
                 verdict = "accepted" if r.accepted else f"REFUSED ({r.refusal})"
                 print(f" {name}: {len(r.free)} placement directions, {verdict}")
                 for i, part in zip(idx, r.chains, strict=True):

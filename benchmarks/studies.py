@@ -281,9 +281,13 @@ def contacts() -> None:
             for test in folds(data.m):
                 train = np.setdiff1d(np.arange(data.m), test)
                 r = calib.calibrate(
-                    chain, take(data, train), marker=(0.0, 0.0, -0.12),
-                    validate=take(data, test), seed=0, elastic=elastic,
-                )  # fmt: skip
+                    chain,
+                    take(data, train),
+                    marker=(0.0, 0.0, -0.12),
+                    validate=take(data, test),
+                    seed=0,
+                    elastic=elastic,
+                )
                 before.append(r.stats["held_out_registration"])
                 after.append(
                     r.stats["held_out"] if r.accepted else r.stats["held_out_registration"]

@@ -136,10 +136,13 @@ def calibrated(chains, cameras, target, obs, validate=None, what=None, **options
     cameras = cameras if isinstance(cameras, tuple) else (cameras,)
     what = Unknowns() if what is None else what
     terms = tuple(
-        Term(c, PixelData(cam, target, obs, what), None if validate is None else PixelData(
-            cam, target, validate, what))
+        Term(
+            c,
+            PixelData(cam, target, obs, what),
+            None if validate is None else PixelData(cam, target, validate, what),
+        )
         for c, cam in zip(chains, cameras, strict=True)
-    )  # fmt: skip
+    )
     return calibrate(Problem(terms, params="complete", **options))
 
 

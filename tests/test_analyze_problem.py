@@ -33,10 +33,14 @@ ZERO = {"error_mm": 0.0, "error_mrad": 0.0}
 def _touches(chains, m=24):
     """Noise-free plane touches on the nominal robot, and the Pinocchio reference of them
     (each plane the first touch's placement: the touches are flush on it)."""
-    data = [calib.simulate_contacts(c, m, "plane", seed=1 + k, **ZERO).data
-            for k, c in enumerate(chains)]  # fmt: skip
-    terms = [(c.base_frame, c.tool_frame, _joints(c, d.q), "plane")
-             for c, d in zip(chains, data, strict=True)]  # fmt: skip
+    data = [
+        calib.simulate_contacts(c, m, "plane", seed=1 + k, **ZERO).data
+        for k, c in enumerate(chains)
+    ]
+    terms = [
+        (c.base_frame, c.tool_frame, _joints(c, d.q), "plane")
+        for c, d in zip(chains, data, strict=True)
+    ]
     robot = _Robot(chains[0].urdf_path, terms)
     for k, term in enumerate(terms):
         first = {n: v[:1] for n, v in term[2].items()}
@@ -169,8 +173,10 @@ def test_the_command_line_prints_what_the_python_function_counts(tmp_path, capsy
     for chain, d, name in zip(chains, data, ("left.csv", "right.csv"), strict=True):
         write_contacts(tmp_path / name, d)
         argv += ["--term", "plane", chain.base_frame, chain.tool_frame, str(tmp_path / name)]
-    read = [calib.read_contacts(tmp_path / n, c, "plane") for n, c in zip(
-        ("left.csv", "right.csv"), chains, strict=True)]  # fmt: skip
+    read = [
+        calib.read_contacts(tmp_path / n, c, "plane")
+        for n, c in zip(("left.csv", "right.csv"), chains, strict=True)
+    ]
     problem = calib.Problem(tuple(calib.Term(c, d) for c, d in zip(chains, read, strict=True)))
     assert main([*argv, "--json"]) == 0
     assert json.loads(capsys.readouterr().out) == calib.analyze(problem).to_dict()

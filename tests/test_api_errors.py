@@ -530,9 +530,12 @@ def test_a_cameras_placement_given_as_a_list_is_an_array():
     """``PixelCamera(..., placement=np.eye(4).tolist())`` passed the rigid-transform check
     and was kept a list: the fit failed with a TypeError (list indices)."""
     pinhole = Pinhole(600.0, 600.0, 320.0, 240.0)
-    camera = calib.PixelCamera("cam", "world", Intrinsics(640, 480, pinhole), [
-        [1.0, 0.0, 0.0, 0.5], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 1.0], [0, 0, 0, 1]
-    ])  # fmt: skip
+    camera = calib.PixelCamera(
+        "cam",
+        "world",
+        Intrinsics(640, 480, pinhole),
+        [[1.0, 0.0, 0.0, 0.5], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 1.0], [0, 0, 0, 1]],
+    )
     assert isinstance(camera.placement, np.ndarray) and camera.placement.dtype == float
     assert camera.placement[0, 3] == 0.5 and not camera.placement.flags.writeable
 

@@ -473,8 +473,18 @@ def test_an_orientation_weight_with_no_angle_rows_is_refused(tmp_path, capsys, c
     touches = tmp_path / "points.csv"
     code, _, _ = run(capsys, ["simulate", "ur5", "--measure", "fixed-point", "--out", touches])
     assert code == 0
-    argv = ["calibrate", "ur5", "--measure", "fixed-point", "--data", touches, "--out", out,
-            "--orientation-weight", weight]  # fmt: skip
+    argv = [
+        "calibrate",
+        "ur5",
+        "--measure",
+        "fixed-point",
+        "--data",
+        touches,
+        "--out",
+        out,
+        "--orientation-weight",
+        weight,
+    ]
     assert "the data have none (--measure fixed-point: lengths)" in one_error(capsys, argv)
     assert not out.exists()
 
@@ -518,10 +528,19 @@ def test_design_refuses_an_orientation_weight_it_would_ignore(tmp_path, capsys, 
     assert "--orientation-weight weighs the orientation rows of --measure pose" in line
     chain = calib.load_chain("ur5")
     with pytest.raises(calib.InvalidArgumentError, match="weighs the orientation rows"):
-        calib.design(chain, 30, measure=argv[argv.index("--measure") + 1] if "--measure" in argv
-                     else "position", orientation_weight=2.0)  # fmt: skip
-    assert run(capsys, ["design", "ur5", "--measure", "pose", "--configs", "30",
-                        "--orientation-weight", "2"])[0] == 0  # fmt: skip
+        calib.design(
+            chain,
+            30,
+            measure=argv[argv.index("--measure") + 1] if "--measure" in argv else "position",
+            orientation_weight=2.0,
+        )
+    assert (
+        run(
+            capsys,
+            ["design", "ur5", "--measure", "pose", "--configs", "30", "--orientation-weight", "2"],
+        )[0]
+        == 0
+    )
 
 
 HANDS = ["--tool", "wrist_left_ft_tool_link", "--tool", "gripper_left_base_link"]

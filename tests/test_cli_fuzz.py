@@ -50,9 +50,24 @@ FUZZ = settings(
 NUMBER = re.compile(rb"(?<![\w.])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])")
 """A number on its own (not the digit of a name such as ``joint1``)."""
 ODD_NUMBERS = [
-    b"nan", b"-nan", b"inf", b"-inf", b"1e300", b"-1e300", b"1e-300", b"", b" ", b"0", b"-0",
-    b"1_0", b"0x10", b"1e", b"--1", b"1,5", b"\xff",
-]  # fmt: skip
+    b"nan",
+    b"-nan",
+    b"inf",
+    b"-inf",
+    b"1e300",
+    b"-1e300",
+    b"1e-300",
+    b"",
+    b" ",
+    b"0",
+    b"-0",
+    b"1_0",
+    b"0x10",
+    b"1e",
+    b"--1",
+    b"1,5",
+    b"\xff",
+]
 
 
 def _flip_byte(draw, text: bytes) -> bytes:

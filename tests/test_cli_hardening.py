@@ -99,17 +99,43 @@ def test_no_command_writes_onto_what_it_reads(tmp_path, capsys, campaign, tree_c
     cases = [
         (["calibrate", "ur5", "--data", data, "--out", data], data),
         (["calibrate", "ur5", "--data", data, "--validate", val, "--out", val], val),
-        (["calibrate", "ur5", "--data", data, "--validate", val, "--out", tmp_path / "c",
-          "--report", val], val),
+        (
+            [
+                "calibrate",
+                "ur5",
+                "--data",
+                data,
+                "--validate",
+                val,
+                "--out",
+                tmp_path / "c",
+                "--report",
+                val,
+            ],
+            val,
+        ),
         (["simulate", "ur5", "--configs-file", data, "--out", data], data),
-        (["simulate", "talos", "--measure", "position", "--configs-file", tree,
-          "--out", tmp_path / "s", "--truth", tree], tree),
+        (
+            [
+                "simulate",
+                "talos",
+                "--measure",
+                "position",
+                "--configs-file",
+                tree,
+                "--out",
+                tmp_path / "s",
+                "--truth",
+                tree,
+            ],
+            tree,
+        ),
         ([*design, "--candidates-file", data, "--out", data], data),
         ([*design, "--srdf", srdf, "--out", srdf], srdf),
         ([*design, "--out", UR5_SRDF], UR5_SRDF),  # example-robot-data's own SRDF
         ([*design, "--out", UR5_SRDF.parent / "new.csv"], None),  # inside the package
         ([*design, "--out", CALIB_DIR / "new.csv"], None),  # inside calib itself
-    ]  # fmt: skip
+    ]
     for argv, target in cases:
         before = {p: digest(p) for p in (data, val, tree, srdf, UR5_SRDF)}
         line = one_error(capsys, argv)
@@ -160,8 +186,9 @@ BAD_SRDF = {
 def test_a_bad_srdf_is_one_line_naming_the_file(tmp_path, capsys, kind):
     srdf = tmp_path / "bad.srdf"
     srdf.write_bytes(BAD_SRDF[kind])
-    line = one_error(capsys, ["design", "ur5", "--configs", "10", "--candidates", "60",
-                              "--srdf", srdf])  # fmt: skip
+    line = one_error(
+        capsys, ["design", "ur5", "--configs", "10", "--candidates", "60", "--srdf", srdf]
+    )
     assert str(srdf) in line and "SRDF" in line
     assert srdf.read_bytes() == BAD_SRDF[kind]
 
@@ -278,26 +305,38 @@ def test_ctrl_c_at_any_time_is_one_line_and_130(tmp_path, large_campaign, librar
 @pytest.mark.parametrize(
     ("argv", "fact"),
     [
-        (["calibrate", "ur5", "--data", "d.csv", "--out", "c", "--elastic", "--no-elastic"],
-         "--no-elastic: contradicts --elastic"),
-        (["calibrate", "ur5", "--data", "d.csv", "--out", "c", "--no-elastic", "--no-elastic"],
-         "given more than once"),
+        (
+            ["calibrate", "ur5", "--data", "d.csv", "--out", "c", "--elastic", "--no-elastic"],
+            "--no-elastic: contradicts --elastic",
+        ),
+        (
+            ["calibrate", "ur5", "--data", "d.csv", "--out", "c", "--no-elastic", "--no-elastic"],
+            "given more than once",
+        ),
         (["design", "ur5", "--configs", "9", "--collision", "--no-collision"], "contradicts"),
         (["show", "ur5", "--json", "--json"], "given more than once"),
         (["design", "ur5", "--configs", "9", "--noise-mm", "0"], "positive number"),
         (["design", "ur5", "--configs", "9", "--noise-mm", "-0.1"], "positive number"),
         (["design", "ur5", "--configs", "9", "--noise-mm", "nan"], "positive number"),
         (["design", "ur5", "--configs", "9", "--noise-mm", "inf"], "positive number"),
-        (["calibrate", "ur5", "--data", "d.csv", "--out", "c", "--noise-mm", "0"],
-         "argument --noise-mm: expected a positive number"),
-        (["simulate", "ur5", "--out", "s.csv", "--noise-mm", "-1"],
-         "argument --noise-mm: expected a number >= 0"),
-        (["simulate", "ur5", "--out", "s.csv", "--error-mm", "nan"],
-         "argument --error-mm: expected a number >= 0"),
-        (["simulate", "ur5", "--out", "s.csv", "--noise-mrad", "2000"],
-         "argument --noise-mrad: expected a number >= 0"),
+        (
+            ["calibrate", "ur5", "--data", "d.csv", "--out", "c", "--noise-mm", "0"],
+            "argument --noise-mm: expected a positive number",
+        ),
+        (
+            ["simulate", "ur5", "--out", "s.csv", "--noise-mm", "-1"],
+            "argument --noise-mm: expected a number >= 0",
+        ),
+        (
+            ["simulate", "ur5", "--out", "s.csv", "--error-mm", "nan"],
+            "argument --error-mm: expected a number >= 0",
+        ),
+        (
+            ["simulate", "ur5", "--out", "s.csv", "--noise-mrad", "2000"],
+            "argument --noise-mrad: expected a number >= 0",
+        ),
     ],
-)  # fmt: skip
+)
 def test_contradictory_repeated_or_impossible_flags_are_usage_errors(capsys, argv, fact):
     line = one_error(capsys, argv)
     assert fact in line and "--help)" in line
@@ -443,8 +482,9 @@ def test_a_selection_too_long_to_wait_for_is_refused_up_front(tmp_path, capsys, 
     points = F[:, None, :3, 3] + np.einsum("mij,kj->mki", F[:, :3, :3], markers)
     data = tmp_path / "k50.csv"
     header = [*chain.joint_names, *(f"{a}{k + 1}" for k in range(50) for a in "xyz")]
-    np.savetxt(data, np.c_[q, points.reshape(200, -1)], delimiter=",", header=",".join(header),
-               comments="")  # fmt: skip
+    np.savetxt(
+        data, np.c_[q, points.reshape(200, -1)], delimiter=",", header=",".join(header), comments=""
+    )
 
     def forbidden(*args, **kwargs):
         raise AssertionError("the selection started")

@@ -421,8 +421,9 @@ def test_the_engines_keywords_are_its_run_and_its_options():
     # calibrate's; it was refused here as if it were touches
     ur5 = load_robot("ur5")
     rows = simulate(ur5, 40, "position", (0.01, 0.02, 0.05), seed=1).measurements
-    fitted = calibrate_contact_chains([ur5], [rows], elastic=True, params="complete",
-                                      instrument=True)  # fmt: skip
+    fitted = calibrate_contact_chains(
+        [ur5], [rows], elastic=True, params="complete", instrument=True
+    )
     assert "c2" in fitted.free
 
 

@@ -203,10 +203,24 @@ def test_elastic_with_another_kind_is_one_error(kind, tmp_path):
     write_contacts(tmp_path / "t.csv", data)
     cli = [sys.executable, "-m", "calib.cli.launcher", "calibrate", TALOS[0]]
     run = subprocess.run(
-        [*cli, "--base", TALOS[1], "--tool", TALOS[2], "--data", "t.csv", "--measure", kind,
-         "--elastic", "--out", "cal.urdf"],
-        capture_output=True, text=True, cwd=tmp_path,
-    )  # fmt: skip
+        [
+            *cli,
+            "--base",
+            TALOS[1],
+            "--tool",
+            TALOS[2],
+            "--data",
+            "t.csv",
+            "--measure",
+            kind,
+            "--elastic",
+            "--out",
+            "cal.urdf",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
     assert run.returncode == 2 and "Traceback" not in run.stderr
     assert len(run.stderr.strip().splitlines()) == 1 and "plane contacts only" in run.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv"]
@@ -519,8 +533,9 @@ def test_held_out_touches_without_the_other_joints_are_noted():
     notes = calibrate_contacts(
         chain, train, contact=(0, 0, -0.12), validate=bare, elastic=True
     ).notes
-    assert any("the held-out touches record 0 joints off the chain, the fitted ones 17" in n
-               for n in notes)  # fmt: skip
+    assert any(
+        "the held-out touches record 0 joints off the chain, the fitted ones 17" in n for n in notes
+    )
     same = calibrate_contacts(chain, train, contact=(0, 0, -0.12), validate=held, elastic=True)
     assert not any("joints off the chain" in n for n in same.notes)
 
@@ -573,8 +588,12 @@ def _pinocchio_gaps(chain, q, tau, theta, plane, contact):
     data = model.createData()
     R = pin.exp3(np.r_[rest[1], rest[2], 0.0])
     normal, height = plane[:3, :3] @ R[:, 2], plane[:3, 2] @ plane[:3, 3] + rest[0]
-    Cm = contact @ np.block([[pin.exp3(np.r_[rest[3], rest[4], 0.0]), np.zeros((3, 1))],
-                             [np.zeros((1, 3)), np.ones((1, 1))]])  # fmt: skip
+    Cm = contact @ np.block(
+        [
+            [pin.exp3(np.r_[rest[3], rest[4], 0.0]), np.zeros((3, 1))],
+            [np.zeros((1, 3)), np.ones((1, 1))],
+        ]
+    )
     out = []
     for qi, ti in zip(q, tau, strict=True):
         config = chain.pin_configurations((qi + c * ti)[None])[0]

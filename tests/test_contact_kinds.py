@@ -153,9 +153,24 @@ def test_written_urdf_scored_by_pinocchio_reproduces_the_report(capsys, tmp_path
     write_contacts(csv, camp.data)
     guess = ["0", "0", "0.01"] + (["0.01", "-0.02", "0.03"] if kind == "plane-point" else [])
     code, err = _cli(
-        capsys, "calibrate", *where, "--data", str(csv), "--measure", kind, "--contact",
-        *guess, "--out", str(out), "--report", str(rep), "--holdout", "0.3", "--seed", "2",
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        *where,
+        "--data",
+        str(csv),
+        "--measure",
+        kind,
+        "--contact",
+        *guess,
+        "--out",
+        str(out),
+        "--report",
+        str(rep),
+        "--holdout",
+        "0.3",
+        "--seed",
+        "2",
+    )
     assert code == 0, err
     report = json.loads(rep.read_text())
     group = {"plane": "planes", "plane-point": "planes", "fixed-point": "points"}.get(kind, "poses")
@@ -169,10 +184,14 @@ def test_written_urdf_scored_by_pinocchio_reproduces_the_report(capsys, tmp_path
     for label, part in (("held_out", held), ("train", train)):
         rows = [i - 2 for i in part.rows]
         g = contact_gaps(
-            kind, out, base, tool, C,
+            kind,
+            out,
+            base,
+            tool,
+            C,
             [np.array(objects[ids[i]]["matrix"]) for i in rows],
             {k: v[rows] for k, v in joints.items()},
-        )  # fmt: skip
+        )
         stats = report["gaps"][label]
         assert stats["m"] == len(rows)
         names = camp.data.kind.row_names
@@ -300,9 +319,17 @@ def test_bad_input_one_line_exit_2_no_output(capsys, tmp_path, extra, message):
     write_contacts(csv, simulate_contacts(chain, 30, kind, seed=0).data)
     out, rep = tmp_path / "cal.urdf", tmp_path / "r.json"
     code, err = _cli(
-        capsys, "calibrate", "ur5", "--data", str(csv), "--out", str(out), "--report", str(rep),
+        capsys,
+        "calibrate",
+        "ur5",
+        "--data",
+        str(csv),
+        "--out",
+        str(out),
+        "--report",
+        str(rep),
         *extra,
-    )  # fmt: skip
+    )
     assert code == 2 and message in err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert not out.exists() and not rep.exists()

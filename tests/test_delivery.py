@@ -75,9 +75,18 @@ def test_pose_data_urdf_tool_frame_is_the_measured_frame(tmp_path, capsys):
     args = ["--measure", "pose", "--error-mm", "1", "--error-mrad", "1", "--noise-mm", "0"]
     assert run(capsys, "simulate", "ur5", *args, "--out", str(m))[0] == 0
     code, out, _ = run(
-        capsys, "calibrate", "ur5", "--data", str(m), "--out", str(urdf), "--report", str(rep),
-        "--params", "complete",
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        "ur5",
+        "--data",
+        str(m),
+        "--out",
+        str(urdf),
+        "--report",
+        str(rep),
+        "--params",
+        "complete",
+    )
     assert code == 0, out
     report = json.loads(rep.read_text())
     rows = read_csv(m)
@@ -133,9 +142,20 @@ def test_marker_links_and_world_link_give_the_measured_points(tmp_path, capsys):
     # Calibrated again, the calibrated URDF's marker link is moved, not duplicated.
     again = tmp_path / "again.urdf"
     code, out, _ = run(
-        capsys, "calibrate", str(urdf), "--base", "base_link", "--tool", "tool0", "--data",
-        str(m), "--params", "frames", "--out", str(again),
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        str(urdf),
+        "--base",
+        "base_link",
+        "--tool",
+        "tool0",
+        "--data",
+        str(m),
+        "--params",
+        "frames",
+        "--out",
+        str(again),
+    )
     assert code == 0, out
     assert again.read_text().count('<link name="tool0_marker1"') == 1
     mk2 = PinURDF(again).placements(q, "tracker", "tool0_marker1")
@@ -182,9 +202,21 @@ def test_elastic_delivery_reproduces_the_whole_model(tmp_path, capsys):
     write_rows(val, chain, held)
     urdf, rep = tmp_path / "cal.urdf", tmp_path / "r.json"
     code, out, _ = run(
-        capsys, "calibrate", "ur5", "--data", str(train), "--validate", str(val), "--elastic",
-        "--params", "complete", "--out", str(urdf), "--report", str(rep),
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        "ur5",
+        "--data",
+        str(train),
+        "--validate",
+        str(val),
+        "--elastic",
+        "--params",
+        "complete",
+        "--out",
+        str(urdf),
+        "--report",
+        str(rep),
+    )
     assert code == 0, out
     report = json.loads(rep.read_text())
     comp = tmp_path / "cal.compliance.json"
@@ -230,9 +262,16 @@ def test_elastic_delivery_reproduces_the_whole_model(tmp_path, capsys):
     configs, pred = tmp_path / "configs.csv", tmp_path / "pred.csv"
     write_rows(configs, chain, held)
     code, out, err = run(
-        capsys, "predict", str(urdf), "--compliance", str(comp), "--configs", str(configs),
-        "--out", str(pred),
-    )  # fmt: skip
+        capsys,
+        "predict",
+        str(urdf),
+        "--compliance",
+        str(comp),
+        "--configs",
+        str(configs),
+        "--out",
+        str(pred),
+    )
     assert code == 0, err
     rows = read_csv(pred)
     assert np.max(np.abs(points(rows) - expected)) < 1e-9
@@ -270,9 +309,22 @@ def test_urdf_alone_worse_than_registration_is_written_with_its_compliance_and_a
     write_rows(train, chain, elastic_campaign(chain, 60, 3, 0.0, error=0.0))
     urdf, rep = tmp_path / "cal.urdf", tmp_path / "r.json"
     code, out, err = run(
-        capsys, "calibrate", "ur5", "--data", str(train), "--elastic", "--params", "frames",
-        "--free", "c2", "c3", "--out", str(urdf), "--report", str(rep),
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        "ur5",
+        "--data",
+        str(train),
+        "--elastic",
+        "--params",
+        "frames",
+        "--free",
+        "c2",
+        "c3",
+        "--out",
+        str(urdf),
+        "--report",
+        str(rep),
+    )
     report = json.loads(rep.read_text())
     res = report["errors"]["train"]
     assert res["urdf"]["position_rms_mm"] > res["registration"]["position_rms_mm"]
@@ -301,10 +353,22 @@ def test_tiago_written_urdf_reproduces_the_printed_held_out_figures(tmp_path, ca
     urdf, rep = tmp_path / "tiago_cal.urdf", tmp_path / "r.json"
     # Default options (compliance is opt-in: the URDF holds the whole model).
     code, out, err = run(
-        capsys, "calibrate", str(tiago / "tiago_48_schunk.urdf"), "--base", "base_footprint",
-        "--tool", "wrist_ft_tool_link", "--data", str(train), "--validate", str(test),
-        "--out", str(urdf), "--report", str(rep),
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        str(tiago / "tiago_48_schunk.urdf"),
+        "--base",
+        "base_footprint",
+        "--tool",
+        "wrist_ft_tool_link",
+        "--data",
+        str(train),
+        "--validate",
+        str(test),
+        "--out",
+        str(urdf),
+        "--report",
+        str(rep),
+    )
     assert code == 0, err
     report = json.loads(rep.read_text())
     rows = read_csv(test)
@@ -344,63 +408,153 @@ def key_paths(doc, prefix: str = "", leaves: tuple[str, ...] = ()) -> set[str]:
 
 STATS = ("configs", "position_rms", "position_max", "orientation_rms", "orientation_max")
 STATS_MM = (
-    "configs", "position_rms_mm", "position_max_mm", "orientation_rms_deg", "orientation_max_deg"
-)  # fmt: skip
+    "configs",
+    "position_rms_mm",
+    "position_max_mm",
+    "orientation_rms_deg",
+    "orientation_max_deg",
+)
 POSE = ("xyz", "rpy", "matrix")
 MDH = ("name", "joint", "sigma", "sign", "beta", "alpha", "d", "theta", "r", "y")
 GROUPS = ("registration", "calibrated", "urdf")
 
 FORMAT3_KEYS = {
-    "format_version", "deprecated", "robot", "urdf", "shape", "terms", "params", "accepted",
-    "refusal", "converged", "message", "iterations", "parameters", "errors", "frames",
-    "objects", "fit", "model_choice", "outliers", "compliance", "model", "warnings",
+    "format_version",
+    "deprecated",
+    "robot",
+    "urdf",
+    "shape",
+    "terms",
+    "params",
+    "accepted",
+    "refusal",
+    "converged",
+    "message",
+    "iterations",
+    "parameters",
+    "errors",
+    "frames",
+    "objects",
+    "fit",
+    "model_choice",
+    "outliers",
+    "compliance",
+    "model",
+    "warnings",
     "timings_ms",
-}  # fmt: skip
+}
 """Every report's top-level keys (format 3), whatever the shape and kind."""
 
 CHAIN_REPORT_KEYS = {
     *FORMAT3_KEYS,
     *(f"terms[].{k}" for k in ("base", "tool", "kind", "data", "configs", "objects")),
     *(f"parameters[].{k}" for k in ("name", "joint", "value", "std", "unit", "prior_weight")),
-    *(f"errors.{p}" for p in ("train", "held_out", "terms")), "errors.held_out.source",
-    "errors.held_out.predicted_std_mm", "errors.terms[].train", "errors.terms[].held_out",
-    "errors.terms[].held_out.source", "errors.terms[].held_out.predicted_std_mm",
-    "errors.held_out.rows", "errors.terms[].held_out.rows",
-    *(f"{p}.{g}" for p in ("errors.train", "errors.held_out", "errors.terms[].train",
-      "errors.terms[].held_out") for g in GROUPS),
-    *(f"{p}.{g}.{k}" for p in ("errors.train", "errors.held_out", "errors.terms[].train",
-      "errors.terms[].held_out") for g in GROUPS for k in STATS_MM),
-    *(f"frames.{k}" for k in ("measurement", "measured", "markers", "contacts", "world_link",
-      "tool_link", "on_robot", "cameras")),
+    *(f"errors.{p}" for p in ("train", "held_out", "terms")),
+    "errors.held_out.source",
+    "errors.held_out.predicted_std_mm",
+    "errors.terms[].train",
+    "errors.terms[].held_out",
+    "errors.terms[].held_out.source",
+    "errors.terms[].held_out.predicted_std_mm",
+    "errors.held_out.rows",
+    "errors.terms[].held_out.rows",
+    *(
+        f"{p}.{g}"
+        for p in (
+            "errors.train",
+            "errors.held_out",
+            "errors.terms[].train",
+            "errors.terms[].held_out",
+        )
+        for g in GROUPS
+    ),
+    *(
+        f"{p}.{g}.{k}"
+        for p in (
+            "errors.train",
+            "errors.held_out",
+            "errors.terms[].train",
+            "errors.terms[].held_out",
+        )
+        for g in GROUPS
+        for k in STATS_MM
+    ),
+    *(
+        f"frames.{k}"
+        for k in (
+            "measurement",
+            "measured",
+            "markers",
+            "contacts",
+            "world_link",
+            "tool_link",
+            "on_robot",
+            "cameras",
+        )
+    ),
     *(f"frames.{f}.{k}" for f in ("measurement", "measured") for k in POSE),
-    *(f"fit.{k}" for k in ("sigma", "condition_number", "predicted_std_mm",
-      "orientation_weight")),
-    "model_choice.kept", "model_choice.steps", "model_choice.steps[].name",
-    "model_choice.steps[].loo_mm", "model_choice.prior_strength",
-    "model_choice.cv_registration_mm", "model_choice.cv_selection_mm", "model_choice.guarded",
-    "model_choice.cv_complete_mm", "model_choice.winner",
+    *(f"fit.{k}" for k in ("sigma", "condition_number", "predicted_std_mm", "orientation_weight")),
+    "model_choice.kept",
+    "model_choice.steps",
+    "model_choice.steps[].name",
+    "model_choice.steps[].loo_mm",
+    "model_choice.prior_strength",
+    "model_choice.cv_registration_mm",
+    "model_choice.cv_selection_mm",
+    "model_choice.guarded",
+    "model_choice.cv_complete_mm",
+    "model_choice.winner",
     *(f"outliers[].{k}" for k in ("term", "row", "kind", "error_mm", "median_mm")),
-    "model.mdh_nominal", "model.mdh_calibrated", "model.gravity", "model.gravity.frame",
-    "model.joint_origins", "model.shared_joints",  # one engine: a chain's joint origins too
-    "model.gravity.vector", *(f"model.mdh_{w}[].{k}" for w in ("nominal", "calibrated")
-    for k in MDH),
+    "model.mdh_nominal",
+    "model.mdh_calibrated",
+    "model.gravity",
+    "model.gravity.frame",
+    "model.joint_origins",
+    "model.shared_joints",  # one engine: a chain's joint origins too
+    "model.gravity.vector",
+    *(f"model.mdh_{w}[].{k}" for w in ("nominal", "calibrated") for k in MDH),
     *(f"timings_ms.{k}" for k in ("registration", "selection", "fit", "validation")),
-}  # fmt: skip
+}
 """The chain report's format 3 keys (``deprecated`` ones aside): a change here is a change
 of format_version."""
 
 CHAIN_DEPRECATED = {
-    "data", "base_frame", "tool_frame", "measure", "markers", "marker_links", "measured_frame",
-    "world_link", "configs", "orientation_weight", "residuals", "validation", "selection",
-    "sigma", "condition_number", "predicted_std", "gravity", "measurement_to_base",
-    "mdh_nominal", "mdh_calibrated",
-}  # fmt: skip
+    "data",
+    "base_frame",
+    "tool_frame",
+    "measure",
+    "markers",
+    "marker_links",
+    "measured_frame",
+    "world_link",
+    "configs",
+    "orientation_weight",
+    "residuals",
+    "validation",
+    "selection",
+    "sigma",
+    "condition_number",
+    "predicted_std",
+    "gravity",
+    "measurement_to_base",
+    "mdh_nominal",
+    "mdh_calibrated",
+}
 """Format 2's keys a chain report still writes (until format 4)."""
 
 TREE_DEPRECATED = {
-    "data", "base_frame", "tools", "measure", "rows", "residuals", "per_tool", "validation",
-    "markers", "marker_links", "measurement_to_base",
-}  # fmt: skip
+    "data",
+    "base_frame",
+    "tools",
+    "measure",
+    "rows",
+    "residuals",
+    "per_tool",
+    "validation",
+    "markers",
+    "marker_links",
+    "measurement_to_base",
+}
 
 
 def format3_paths(report: dict, leaves: tuple[str, ...]) -> set[str]:
@@ -445,9 +599,18 @@ def test_report_keys_are_pinned_and_documented(tmp_path, capsys):
     base = ["talos", "--base", "base_link", *tools]
     assert run(capsys, "simulate", *base, "--measure", "position", "--out", str(m))[0] == 0
     code, out, _ = run(
-        capsys, "calibrate", *base, "--data", str(m), "--holdout", "0.25",
-        "--out", str(tmp_path / "t.urdf"), "--report", str(rep),
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        *base,
+        "--data",
+        str(m),
+        "--holdout",
+        "0.25",
+        "--out",
+        str(tmp_path / "t.urdf"),
+        "--report",
+        str(rep),
+    )
     assert code == 0, out
     tree = json.loads(rep.read_text())
     assert set(tree) - set(tree["deprecated"]) == FORMAT3_KEYS
@@ -520,10 +683,23 @@ def test_tiago_elastic_files_reproduce_the_whole_model(tmp_path, capsys):
     assert any("URDF alone" in w for w in res.warnings)
     urdf, comp = tmp_path / "cal.urdf", tmp_path / "cal.compliance.json"
     code, out, err = run(
-        capsys, "calibrate", str(tiago / "tiago_48_schunk.urdf"), "--base", "base_footprint",
-        "--tool", "wrist_ft_tool_link", "--data", str(train), "--validate", str(test),
-        "--elastic", "--world-link", "mocap", "--out", str(urdf),
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        str(tiago / "tiago_48_schunk.urdf"),
+        "--base",
+        "base_footprint",
+        "--tool",
+        "wrist_ft_tool_link",
+        "--data",
+        str(train),
+        "--validate",
+        str(test),
+        "--elastic",
+        "--world-link",
+        "mocap",
+        "--out",
+        str(urdf),
+    )
     assert code == 0, err
     assert f"held out ({test}), calibrated" in out
     assert f"held out ({test}), URDF alone (no compliance)" in out

@@ -40,8 +40,7 @@ def test_lazy_checks_pick_the_design_of_the_collision_free_candidates():
     q = candidate_configurations(chain, 1500, seed=3)
     keep, report = filter_candidates(chain, q, np.zeros((1, 3)), Constraints())
     assert dict(report.rejected)["collision"] > 0  # the check has something to reject
-    first = design(chain, 20, candidates=q[keep], seed=3,
-                   constraints=Constraints(collision=False))  # fmt: skip
+    first = design(chain, 20, candidates=q[keep], seed=3, constraints=Constraints(collision=False))
     lazy = design(chain, 20, candidates=q, seed=3)
     assert _same_rows(first.q, lazy.q)
     assert lazy.filters.checked is not None and lazy.filters.checked < len(q)

@@ -27,6 +27,7 @@ from calib.measurements.pixels import Target, read_observations, read_target
 DATA = Path(__file__).parent / "data" / "industrial_calibration"
 SMALL = Board("charuco", 5, 7, 0.02, 0.01)  # test_images: CharucoGridTarget(7, 5, 0.02, 0.01)
 SET = DATA / "test_set_charuco"
+# The board of cal_data.yaml's target_finder.
 SET_BOARD = [
     "--board",
     "charuco",
@@ -37,7 +38,7 @@ SET_BOARD = [
     "0.036195",
     "--marker",
     "0.018256",
-]  # fmt: skip  (cal_data.yaml's target_finder)
+]
 POSE_JOINTS = ("px", "py", "pz", "yaw", "pitch", "roll")
 
 
@@ -162,9 +163,22 @@ def test_detect_real_images_then_calibrate(capsys, tmp_path):
     joints.write_text(joints.read_text() + "blank.png,0,0,0,0,0,0\n")
     obs, target, intr = tmp_path / "obs.csv", tmp_path / "target.csv", tmp_path / "intr.yaml"
     code, out, err = run(
-        capsys, "detect", *images, blank, *SET_BOARD, "--joints", joints, "--camera", "mako",
-        "--out", obs, "--target", target, "--intrinsics-out", intr,
-    )  # fmt: skip
+        capsys,
+        "detect",
+        *images,
+        blank,
+        *SET_BOARD,
+        "--joints",
+        joints,
+        "--camera",
+        "mako",
+        "--out",
+        obs,
+        "--target",
+        target,
+        "--intrinsics-out",
+        intr,
+    )
     assert code == 0, err
     assert "found in 8 of 9 images (1600x1200 px): 192 corners" in out
     assert f"not found: {blank}" in out
@@ -180,10 +194,29 @@ def test_detect_real_images_then_calibrate(capsys, tmp_path):
     camera = _guesses(tmp_path, target)
     urdf, report = tmp_path / "cal.urdf", tmp_path / "r.json"
     code, out, err = run(
-        capsys, "calibrate", _pose_robot(tmp_path), "--measure", "pixels", "--data", obs,
-        "--camera", "mako", "world", given, *camera, "--target", tmp_path / "tool_target.csv",
-        "--tool", "tool", "--params", "complete", "--out", urdf, "--report", report,
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        _pose_robot(tmp_path),
+        "--measure",
+        "pixels",
+        "--data",
+        obs,
+        "--camera",
+        "mako",
+        "world",
+        given,
+        *camera,
+        "--target",
+        tmp_path / "tool_target.csv",
+        "--tool",
+        "tool",
+        "--params",
+        "complete",
+        "--out",
+        urdf,
+        "--report",
+        report,
+    )
     assert code == 0, err
     assert urdf.is_file()
     pixels = json.loads(report.read_text())["errors"]["terms"][0]["train"]["pixels"]
@@ -201,9 +234,23 @@ def test_no_board_in_any_image_is_one_line_and_no_file(capsys, tmp_path):
     images, joints = _two_images(tmp_path)
     obs = tmp_path / "obs.csv"
     code, _, err = run(
-        capsys, "detect", *images, "--board", "checkerboard", "--squares", "9", "6",
-        "--square", "0.03", "--joints", joints, "--camera", "c", "--out", obs,
-    )  # fmt: skip
+        capsys,
+        "detect",
+        *images,
+        "--board",
+        "checkerboard",
+        "--squares",
+        "9",
+        "6",
+        "--square",
+        "0.03",
+        "--joints",
+        joints,
+        "--camera",
+        "c",
+        "--out",
+        obs,
+    )
     assert code == 2 and err.count("\n") == 1
     assert "no checkerboard board found in any of 2 images" in err
     assert not obs.exists()
@@ -232,8 +279,18 @@ def test_an_image_without_joint_readings_is_one_line_and_no_file(capsys, tmp_pat
 )
 def test_bad_boards_are_one_line(capsys, tmp_path, options, message):
     images, joints = _two_images(tmp_path)
-    code, _, err = run(capsys, "detect", *images, *options, "--joints", joints, "--camera", "c",
-                       "--out", tmp_path / "obs.csv")  # fmt: skip
+    code, _, err = run(
+        capsys,
+        "detect",
+        *images,
+        *options,
+        "--joints",
+        joints,
+        "--camera",
+        "c",
+        "--out",
+        tmp_path / "obs.csv",
+    )
     assert code == 2 and err.count("\n") == 1 and message in err
 
 
@@ -259,8 +316,18 @@ def test_without_opencv_the_error_says_how_to_install_it(capsys, tmp_path, monke
     with pytest.raises(InvalidArgumentError, match=r"pip install 'calib\[vision\]'"):
         detect_board(np.zeros((10, 10), np.uint8), SMALL)
     images, joints = _two_images(tmp_path)
-    code, _, err = run(capsys, "detect", *images, *SET_BOARD, "--joints", joints, "--camera",
-                       "c", "--out", tmp_path / "obs.csv")  # fmt: skip
+    code, _, err = run(
+        capsys,
+        "detect",
+        *images,
+        *SET_BOARD,
+        "--joints",
+        joints,
+        "--camera",
+        "c",
+        "--out",
+        tmp_path / "obs.csv",
+    )
     assert code == 2 and err.count("\n") == 1 and "calib[vision]" in err
 
 
@@ -314,11 +381,29 @@ def test_rendered_board_round_trip(capsys, tmp_path):
     (tmp_path / "joints.csv").write_text("\n".join(rows) + "\n")
     obs_path, target_path = tmp_path / "obs.csv", tmp_path / "target.csv"
     code, _, err = run(
-        capsys, "detect", *(tmp_path / f"{k}.png" for k in range(10)), "--board", "charuco",
-        "--squares", 7, 5, "--square", 0.06, "--marker", 0.045, "--dictionary", "DICT_4X4_50",
-        "--joints", tmp_path / "joints.csv", "--camera", "cam", "--out", obs_path,
-        "--target", target_path,
-    )  # fmt: skip
+        capsys,
+        "detect",
+        *(tmp_path / f"{k}.png" for k in range(10)),
+        "--board",
+        "charuco",
+        "--squares",
+        7,
+        5,
+        "--square",
+        0.06,
+        "--marker",
+        0.045,
+        "--dictionary",
+        "DICT_4X4_50",
+        "--joints",
+        tmp_path / "joints.csv",
+        "--camera",
+        "cam",
+        "--out",
+        obs_path,
+        "--target",
+        target_path,
+    )
     assert code == 0, err
     write_intrinsics(tmp_path / "intr.yaml", lens)
     obs = read_observations(obs_path, chain.joint_names, {"cam": lens})
@@ -354,9 +439,19 @@ def test_intrinsics_written_to_stdout_are_alone_there(capsys, tmp_path):
     YAML, on standard output too."""
     images = [SET / "images" / f"{i}.jpg" for i in range(8)]
     code, out, err = run(
-        capsys, "detect", *images, *SET_BOARD, "--joints", _joints_csv(tmp_path, 8),
-        "--camera", "mako", "--out", tmp_path / "obs.csv", "--intrinsics-out", "-",
-    )  # fmt: skip
+        capsys,
+        "detect",
+        *images,
+        *SET_BOARD,
+        "--joints",
+        _joints_csv(tmp_path, 8),
+        "--camera",
+        "mako",
+        "--out",
+        tmp_path / "obs.csv",
+        "--intrinsics-out",
+        "-",
+    )
     assert code == 0, err
     assert out.startswith("%YAML") and "found in" not in out and "wrote" not in out
     assert "found in 8 of 8 images" in err

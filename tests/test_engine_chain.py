@@ -117,8 +117,9 @@ def offset_campaign(chain, m: int, seed: int, joint: int, error: float) -> Measu
     dx[pset.names.index(f"theta{joint}")] = error
     frame = np.eye(4)
     frame[:3, 3] = (0.5, -0.2, 0.1)
-    state = State(pset.apply(nominal, dx), frame, np.array([[0.01, 0.02, 0.05]]), None,
-                  np.zeros(chain.n))  # fmt: skip
+    state = State(
+        pset.apply(nominal, dx), frame, np.array([[0.01, 0.02, 0.05]]), None, np.zeros(chain.n)
+    )
     q = chain.random_configurations(m, seed)
     points = state.predict(q)[0][:, 0]
     return Measurements(chain.joint_names, q, points, source="theta2 only"), state

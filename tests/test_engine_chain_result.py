@@ -215,8 +215,18 @@ def test_cli_calibrate_world_link_and_predict(tmp_path, capsys):
     assert np.abs(marker_in(urdf, "tracker", chain, truth.q) - truth.position).max() < 1e-9
     configs, pred = tmp_path / "q.csv", tmp_path / "p.csv"
     write_configs(configs, chain.joint_names, truth.q)
-    code = main(["predict", str(urdf), "--compliance", str(rep), "--configs", str(configs),
-                 "--out", str(pred)])  # fmt: skip
+    code = main(
+        [
+            "predict",
+            str(urdf),
+            "--compliance",
+            str(rep),
+            "--configs",
+            str(configs),
+            "--out",
+            str(pred),
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     with pred.open() as f:
         rows = list(csv.DictReader(f))

@@ -295,10 +295,22 @@ def test_a_closed_pipe_on_stdout_leaves_the_warnings_on_stderr(tmp_path):
     os.close(read)  # a reader that left at once
     try:
         printed = subprocess.run(
-            [sys.executable, "-m", "calib.cli", "calibrate", "ur5", "--data", str(path),
-             "--out", "-"],
-            stdout=write, stderr=subprocess.PIPE, text=True, timeout=120,
-        )  # fmt: skip
+            [
+                sys.executable,
+                "-m",
+                "calib.cli",
+                "calibrate",
+                "ur5",
+                "--data",
+                str(path),
+                "--out",
+                "-",
+            ],
+            stdout=write,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=120,
+        )
     finally:
         os.close(write)
     assert printed.returncode == 0, printed.stderr

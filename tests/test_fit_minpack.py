@@ -44,9 +44,15 @@ def test_the_fit_is_least_squares_lm(monkeypatch, measure, params, iterations):
     args = (seen["model"], seen["start"], seen["data"], seen["torque"])
     problem = Problem(*args, prior, robust=False)
     sol = scipy.optimize.least_squares(
-        problem.fun, np.zeros(size), jac=problem.jac, method="lm",
-        ftol=TOLERANCE, xtol=TOLERANCE, gtol=TOLERANCE, max_nfev=iterations,
-    )  # fmt: skip
+        problem.fun,
+        np.zeros(size),
+        jac=problem.jac,
+        method="lm",
+        ftol=TOLERANCE,
+        xtol=TOLERANCE,
+        gtol=TOLERANCE,
+        max_nfev=iterations,
+    )
     fitted = fit(*args, prior=prior, max_iterations=iterations)
     assert np.array_equal(fitted.x, sol.x)
     assert (fitted.status, fitted.message) == (sol.status, sol.message)
@@ -65,9 +71,17 @@ def test_a_robust_loss_is_least_squares_trf_with_the_noise_as_scale(monkeypatch)
     args = (seen["model"], seen["start"], seen["data"], seen["torque"])
     problem = Problem(*args, None, robust=True)
     sol = scipy.optimize.least_squares(
-        problem.fun, np.zeros(size), jac=problem.jac, method="trf", loss="huber",
-        f_scale=2e-4, ftol=TOLERANCE, xtol=TOLERANCE, gtol=TOLERANCE, max_nfev=100,
-    )  # fmt: skip
+        problem.fun,
+        np.zeros(size),
+        jac=problem.jac,
+        method="trf",
+        loss="huber",
+        f_scale=2e-4,
+        ftol=TOLERANCE,
+        xtol=TOLERANCE,
+        gtol=TOLERANCE,
+        max_nfev=100,
+    )
     assert np.array_equal(seen["fitted"].x, sol.x)
 
 

@@ -36,12 +36,25 @@ def _board(M: np.ndarray, columns: int, rows: int, step: float) -> Target:
 
 FLIP = pin.utils.rotate("x", np.pi)
 CASES = {  # robot, camera link, board link, camera, board mounting, board, postures
-    "eye-to-hand ur5": ("ur5", "world", "tool0", look_at(np.array([1.6, 0.3, 0.8]), [0, 0, 0.3]),
-                        _pose(FLIP, (-0.12, 0.08, 0.01)), (7, 5, 0.04), None),
-    "eye-in-hand panda": ("panda", "panda_hand", "panda_link0", _pose(np.eye(3), (0, 0.05, 0.05)),
-                          _pose(FLIP, (0.3, 0.09, 0.0)), (6, 5, 0.06),
-                          np.array([0.8, 2.0, 0.0, -2.2, 0.0, -0.3, 0.0])),
-}  # fmt: skip
+    "eye-to-hand ur5": (
+        "ur5",
+        "world",
+        "tool0",
+        look_at(np.array([1.6, 0.3, 0.8]), [0, 0, 0.3]),
+        _pose(FLIP, (-0.12, 0.08, 0.01)),
+        (7, 5, 0.04),
+        None,
+    ),
+    "eye-in-hand panda": (
+        "panda",
+        "panda_hand",
+        "panda_link0",
+        _pose(np.eye(3), (0, 0.05, 0.05)),
+        _pose(FLIP, (0.3, 0.09, 0.0)),
+        (6, 5, 0.06),
+        np.array([0.8, 2.0, 0.0, -2.2, 0.0, -0.3, 0.0]),
+    ),
+}
 
 
 @pytest.mark.parametrize("case", CASES)
@@ -73,8 +86,14 @@ def test_a_camera_off_the_chains_base_is_refused():
     chain = load_chain("ur5", base="world", tool="tool0")
     target = _board(np.eye(4), 3, 3, 0.05)
     camera = PixelCamera("cam", "tool0", INTRINSICS, None)
-    obs = simulate_pixels(chain, "cam", look_at(np.array([1.6, 0.3, 0.8]), [0, 0, 0.3]),
-                          INTRINSICS, target, chain.random_configurations(200, 1))  # fmt: skip
+    obs = simulate_pixels(
+        chain,
+        "cam",
+        look_at(np.array([1.6, 0.3, 0.8]), [0, 0, 0.3]),
+        INTRINSICS,
+        target,
+        chain.random_configurations(200, 1),
+    )
     with pytest.raises(
         InvalidArgumentError, match="camera cam: its chain must start at its link tool0, not world"
     ):
@@ -94,8 +113,9 @@ def test_a_gross_outlier_is_set_aside_as_by_every_term():
     pixels = obs.pixels.copy()
     pixels[40] += (40.0, 0.0)  # row 41 (no file: rows count from 1)
     bad = dataclasses.replace(obs, pixels=pixels)
-    guess = _board(M @ _pose(pin.exp3(np.array([0.02, -0.01, 0.015])), (0.008, -0.005, 0.004)),
-                   *size)  # fmt: skip
+    guess = _board(
+        M @ _pose(pin.exp3(np.array([0.02, -0.01, 0.015])), (0.008, -0.005, 0.004)), *size
+    )
     fit = hand_eye(chain, PixelCamera("cam", link, INTRINSICS, None), guess, bad)
     clean = hand_eye(chain, PixelCamera("cam", link, INTRINSICS, None), guess, obs)
     assert fit.outliers == (41,) and clean.outliers == ()

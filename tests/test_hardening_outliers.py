@@ -98,8 +98,9 @@ def test_a_bad_held_out_row_is_set_aside_not_refusing_the_run():
     wild = held.rows[2]
     pos = data.position.copy()
     pos[wild - 2, 1] += 0.5
-    res = calibrate(chain, dataclasses.replace(data, position=pos), params="complete",
-                    holdout=0.3, seed=1)  # fmt: skip
+    res = calibrate(
+        chain, dataclasses.replace(data, position=pos), params="complete", holdout=0.3, seed=1
+    )
     assert res.validation.calibrated.configs == held.m - 1
     assert any(f"row {wild} (" in w and "held-out statistics" in w for w in res.warnings)
     clean = held.subset(np.array(held.rows) != wild)
@@ -120,8 +121,9 @@ def test_a_bad_held_out_touch_is_set_aside():
     q[wild, 1] += 1.0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = calibrate_contacts(chain, dataclasses.replace(data, q=q), params="offsets",
-                                 holdout=0.3, seed=1)  # fmt: skip
+        res = calibrate_contacts(
+            chain, dataclasses.replace(data, q=q), params="offsets", holdout=0.3, seed=1
+        )
     assert res.stats["held_out"].m == held_m - 1
     assert any(f"row {wild + 2} (" in n and "held-out statistics" in n for n in res.notes)
 
@@ -146,8 +148,9 @@ def test_a_bad_held_out_tree_row_is_set_aside():
 def _hidden_touch_error(dq: float = 0.005):
     """80 panda touches of a point, the robot 3 mm / 3 mrad off, one's shoulder 5 mrad off."""
     chain = load_robot("panda")
-    camp = simulate_contacts(chain, 80, "fixed-point", seed=3, noise_mrad=0.05, error_mm=3.0,
-                             error_mrad=3.0)  # fmt: skip
+    camp = simulate_contacts(
+        chain, 80, "fixed-point", seed=3, noise_mrad=0.05, error_mm=3.0, error_mrad=3.0
+    )
     data = dataclasses.replace(camp.data, rows=tuple(range(2, camp.data.m + 2)))
     q = data.q.copy()
     q[40, 1] += dq
@@ -174,8 +177,9 @@ def test_a_tree_row_hidden_by_the_geometric_errors_is_set_aside_after_the_fit():
     from calib.measurements.tree_campaign import simulate_tree
 
     tree = load_robot("bolt")
-    camp = simulate_tree(tree, 40, markers=(0.0, 0.0, 0.02), noise_mm=0.05, seed=5,
-                         error_mm=3.0, error_mrad=3.0)  # fmt: skip
+    camp = simulate_tree(
+        tree, 40, markers=(0.0, 0.0, 0.02), noise_mm=0.05, seed=5, error_mm=3.0, error_mrad=3.0
+    )
     data = dataclasses.replace(camp.measurements, rows=tuple(range(2, camp.measurements.m + 2)))
     pos = data.position.copy()
     pos[17] += [0.0, 0.008, 0.0]
@@ -194,8 +198,9 @@ def test_ten_20_mm_tree_outliers_hidden_by_the_geometric_errors_are_all_found():
     from calib.measurements.tree_campaign import simulate_tree
 
     tree = load_robot("bolt")
-    camp = simulate_tree(tree, 35, markers=(0.0, 0.0, 0.02), noise_mm=0.05, seed=5,
-                         error_mm=5.0, error_mrad=5.0)  # fmt: skip
+    camp = simulate_tree(
+        tree, 35, markers=(0.0, 0.0, 0.02), noise_mm=0.05, seed=5, error_mm=5.0, error_mrad=5.0
+    )
     data = camp.measurements
     rng = np.random.default_rng(5)
     bad = rng.choice(data.m, 10, replace=False)

@@ -118,21 +118,64 @@ def test_noise_free_round_trip_writes_the_camera_into_the_urdf(measure, tmp_path
     T = _camera_to_hand(model, chain.joint_names, truth_q, tool=res.urdf_tool_frame)
     point = T[:, :3, 3] if measure == "pose" else (T @ np.append(res.urdf_markers[0], 1))[:, :3]
     assert np.max(np.linalg.norm(point - train.position[:, :3], axis=1)) < 1e-9
-    before = _camera_to_hand(pin.buildModelFromUrdf(str(chain.urdf_path)), chain.joint_names,
-                             truth_q)  # fmt: skip
+    before = _camera_to_hand(
+        pin.buildModelFromUrdf(str(chain.urdf_path)), chain.joint_names, truth_q
+    )
     assert np.max(np.abs(before[:, :3, 3] - T[:, :3, 3])) > 1e-4  # the camera did move
 
 
 def test_command_line_on_robot(tmp_path, capsys):
     data, out, report = tmp_path / "m.csv", tmp_path / "cal.urdf", tmp_path / "r.json"
     frames = ["tiago", "--base", CAMERA, "--tool", HAND]
-    assert main(["simulate", *frames, "--measure", "position", "--configs", "60",
-                 "--noise-mm", "0", "--out", str(data)]) == 0  # fmt: skip
-    code = main(["calibrate", *frames, "--data", str(data), "--on-robot", "--params",
-                 "complete", "--out", str(out), "--report", str(report)])  # fmt: skip
+    assert (
+        main(
+            [
+                "simulate",
+                *frames,
+                "--measure",
+                "position",
+                "--configs",
+                "60",
+                "--noise-mm",
+                "0",
+                "--out",
+                str(data),
+            ]
+        )
+        == 0
+    )
+    code = main(
+        [
+            "calibrate",
+            *frames,
+            "--data",
+            str(data),
+            "--on-robot",
+            "--params",
+            "complete",
+            "--out",
+            str(out),
+            "--report",
+            str(report),
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     doc = json.loads(report.read_text())
     assert doc["frames"]["on_robot"] is True
-    assert main(["calibrate", *frames, "--data", str(data), "--on-robot", "--world-link", "w",
-                 "--out", str(tmp_path / "x.urdf")]) == 2  # fmt: skip
+    assert (
+        main(
+            [
+                "calibrate",
+                *frames,
+                "--data",
+                str(data),
+                "--on-robot",
+                "--world-link",
+                "w",
+                "--out",
+                str(tmp_path / "x.urdf"),
+            ]
+        )
+        == 2
+    )
     assert "--on-robot" in capsys.readouterr().err

@@ -46,9 +46,18 @@ def test_contact_validation_that_is_the_data_is_refused(kind, tmp_path, capsys):
     for check in (train, copy, some):
         out = tmp_path / "cal.urdf"
         code = main(
-            ["calibrate", TALOS, *frames, "--data", str(train), "--validate", str(check),
-             "--out", str(out)]
-        )  # fmt: skip
+            [
+                "calibrate",
+                TALOS,
+                *frames,
+                "--data",
+                str(train),
+                "--validate",
+                str(check),
+                "--out",
+                str(out),
+            ]
+        )
         err = capsys.readouterr().err
         assert code != 0 and not out.exists()
         assert "held out must mean held out" in err and "Traceback" not in err
@@ -107,8 +116,9 @@ def test_held_out_orientation_worse_refuses_a_pose_calibration():
 
     def held(pos_mm: float, rot_deg: float) -> GapStats:  # weight 1 m/rad: 1 mrad is 1 mm
         weighted = math.hypot(pos_mm, 1e3 * math.radians(rot_deg))
-        return GapStats(10, ("xyz", "rot"), (False, True), (pos_mm, rot_deg), (pos_mm, rot_deg),
-                        weighted)  # fmt: skip
+        return GapStats(
+            10, ("xyz", "rot"), (False, True), (pos_mm, rot_deg), (pos_mm, rot_deg), weighted
+        )
 
     worse = {"held_out_registration": held(3.0, 0.1), "held_out": held(2.0, 0.3)}
     why = held_out_refusal(worse, chain, "errors")
@@ -126,10 +136,27 @@ def test_several_chains_refuse_another_arms_file_as_validation(tmp_path, capsys)
     them by half a metre while it fits the data: one line, no file (was accepted)."""
     out = tmp_path / "cal.urdf"
     code = main(
-        ["calibrate", TALOS, "--measure", "plane", "--contact", "0", "0", "-0.12",
-         "--chain", *LEFT, str(REAL / "left_train.csv"), str(REAL / "right_train.csv"),
-         "--chain", LEFT[0], RIGHT[1], str(REAL / "right_train.csv"), "--out", str(out)]
-    )  # fmt: skip
+        [
+            "calibrate",
+            TALOS,
+            "--measure",
+            "plane",
+            "--contact",
+            "0",
+            "0",
+            "-0.12",
+            "--chain",
+            *LEFT,
+            str(REAL / "left_train.csv"),
+            str(REAL / "right_train.csv"),
+            "--chain",
+            LEFT[0],
+            RIGHT[1],
+            str(REAL / "right_train.csv"),
+            "--out",
+            str(out),
+        ]
+    )
     err = capsys.readouterr().err
     assert code != 0 and not out.exists()
     lines = [line for line in err.splitlines() if "warning" not in line]
@@ -144,10 +171,18 @@ def test_warnings_printed_on_the_way_are_in_every_report(shape, tmp_path, capsys
     if shape == "contacts":
         args += ["--base", LEFT[0], "--tool", LEFT[1], "--data", str(REAL / "left_train.csv")]
     else:
-        args += ["--chain", *LEFT, str(REAL / "left_train.csv"),
-                 "--chain", LEFT[0], RIGHT[1], str(REAL / "right_train.csv")]  # fmt: skip
-    code = main([*args, "--params", "frames", "--out", str(tmp_path / "c.urdf"),
-                 "--report", str(report)])  # fmt: skip
+        args += [
+            "--chain",
+            *LEFT,
+            str(REAL / "left_train.csv"),
+            "--chain",
+            LEFT[0],
+            RIGHT[1],
+            str(REAL / "right_train.csv"),
+        ]
+    code = main(
+        [*args, "--params", "frames", "--out", str(tmp_path / "c.urdf"), "--report", str(report)]
+    )
     err = capsys.readouterr().err
     assert code == 0, err
     doc = json.loads(report.read_text())
@@ -167,8 +202,21 @@ def test_warnings_printed_on_the_way_are_in_every_report(shape, tmp_path, capsys
 def test_an_option_that_does_not_apply_is_an_error_for_contacts(extra, flag, shape, capsys):
     """Options a shape ignores were silently ignored for contacts (``--units``)."""
     data = str(REAL / "left_train.csv")
-    args = ["calibrate", TALOS, "--base", LEFT[0], "--tool", LEFT[1], "--measure", "plane",
-            "--data", data, "--out", "/nonexistent/c.urdf", *extra]  # fmt: skip
+    args = [
+        "calibrate",
+        TALOS,
+        "--base",
+        LEFT[0],
+        "--tool",
+        LEFT[1],
+        "--measure",
+        "plane",
+        "--data",
+        data,
+        "--out",
+        "/nonexistent/c.urdf",
+        *extra,
+    ]
     assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err.startswith(f"calib: error: {flag} is for ")
@@ -177,9 +225,22 @@ def test_an_option_that_does_not_apply_is_an_error_for_contacts(extra, flag, sha
 
 @pytest.mark.parametrize("extra", [["--units", "mm"], ["--orientation", "rpy"], ["--elastic"]])
 def test_an_option_that_does_not_apply_is_an_error_for_several_chains(extra, capsys):
-    args = ["calibrate", TALOS, "--measure", "plane", "--chain", *LEFT,
-            str(REAL / "left_train.csv"), "--chain", LEFT[0], RIGHT[1],
-            str(REAL / "right_train.csv"), "--out", "/nonexistent/c.urdf", *extra]  # fmt: skip
+    args = [
+        "calibrate",
+        TALOS,
+        "--measure",
+        "plane",
+        "--chain",
+        *LEFT,
+        str(REAL / "left_train.csv"),
+        "--chain",
+        LEFT[0],
+        RIGHT[1],
+        str(REAL / "right_train.csv"),
+        "--out",
+        "/nonexistent/c.urdf",
+        *extra,
+    ]
     assert main(args) == 2
     assert "not several terms in one fit" in capsys.readouterr().err
 
@@ -206,10 +267,31 @@ def test_a_tool_link_carried_by_a_revolute_joint_is_written(tmp_path, capsys):
     urdf, data = ur10 / "ur10_robot.urdf", ur10 / "calibration.csv"
     out, report = tmp_path / "cal.urdf", tmp_path / "r.json"
     code = main(
-        ["calibrate", str(urdf), "--base", "universe", "--tool", "wrist_3_link", "--data",
-         str(data), "--orientation", "rpy", "--orientation-columns", "phix1", "phiy1", "phiz1",
-         "--holdout", "0.3", "--params", "offsets", "--out", str(out), "--report", str(report)]
-    )  # fmt: skip
+        [
+            "calibrate",
+            str(urdf),
+            "--base",
+            "universe",
+            "--tool",
+            "wrist_3_link",
+            "--data",
+            str(data),
+            "--orientation",
+            "rpy",
+            "--orientation-columns",
+            "phix1",
+            "phiy1",
+            "phiz1",
+            "--holdout",
+            "0.3",
+            "--params",
+            "offsets",
+            "--out",
+            str(out),
+            "--report",
+            str(report),
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     doc = json.loads(report.read_text())
     assert doc["frames"]["tool_link"] == "wrist_3_link_calibrated"
@@ -242,8 +324,9 @@ def test_a_tool_link_carried_by_a_revolute_joint_is_written(tmp_path, capsys):
         point = T[:3, :3] @ marker + T[:3, 3]
         errors.append(np.linalg.norm(point - [float(row[k]) for k in ("x1", "y1", "z1")]))
     rms = 1e3 * float(np.sqrt(np.mean(np.square(errors))))
-    assert math.isclose(rms, doc["errors"]["held_out"]["calibrated"]["position_rms_mm"],
-                        rel_tol=1e-6)  # fmt: skip
+    assert math.isclose(
+        rms, doc["errors"]["held_out"]["calibrated"]["position_rms_mm"], rel_tol=1e-6
+    )
 
 
 def test_validation_far_off_is_refused_for_touches_as_for_points():

@@ -137,11 +137,22 @@ def _fd_rank(chains, names, obs, Cs, every: int, target=TARGET, which=None) -> i
     rows = [r.subset(np.arange(r.m) % every == 0) for r in rows]
 
     def px(model=model, Cs=Cs):
-        return np.concatenate([
-            seen_pixels(model, ch.base_frame, ch.tool_frame, ch.joint_names, r.q,
-                        target.position[r.point], Cs[i], K, DIST).ravel()
-            for ch, r, i in zip(chains, rows, which, strict=True)
-        ])  # fmt: skip
+        return np.concatenate(
+            [
+                seen_pixels(
+                    model,
+                    ch.base_frame,
+                    ch.tool_frame,
+                    ch.joint_names,
+                    r.q,
+                    target.position[r.point],
+                    Cs[i],
+                    K,
+                    DIST,
+                ).ravel()
+                for ch, r, i in zip(chains, rows, which, strict=True)
+            ]
+        )
 
     def moved(T, e):
         return T @ np.block([[pin.exp3(e[3:]), e[:3, None]], [np.zeros((1, 3)), 1]])
@@ -187,10 +198,30 @@ def test_simulate_and_analyze_take_two_cameras(two, tmp_path, capsys):
     for name, chain, T in zip(names, (head, cell), placements, strict=True):
         numbers = [repr(float(v)) for v in (*T[:3, 3], *pin.rpy.matrixToRpy(T[:3, :3]))]
         cameras += ["--camera", name, chain.base_frame, tmp_path / "intr.yaml", *numbers]
-    common = [*cameras, "--target", tmp_path / "target.csv", "--tool", "arm_tool_link",
-              "--configs", 1500, "--seed", 3]  # fmt: skip
-    argv = ["simulate", "tiago", "--measure", "pixels", *common, "--out", tmp_path / "obs.csv",
-            "--error-mm", 0, "--error-mrad", 0]  # fmt: skip
+    common = [
+        *cameras,
+        "--target",
+        tmp_path / "target.csv",
+        "--tool",
+        "arm_tool_link",
+        "--configs",
+        1500,
+        "--seed",
+        3,
+    ]
+    argv = [
+        "simulate",
+        "tiago",
+        "--measure",
+        "pixels",
+        *common,
+        "--out",
+        tmp_path / "obs.csv",
+        "--error-mm",
+        0,
+        "--error-mrad",
+        0,
+    ]
     assert main([str(a) for a in argv]) == 0, capsys.readouterr().err
     assert "cameras xtion_optical_frame on xtion_link, cell_camera on base_footprint" in (
         capsys.readouterr().out
@@ -201,8 +232,17 @@ def test_simulate_and_analyze_take_two_cameras(two, tmp_path, capsys):
     for name, chain, T in zip(names, (head, cell), placements, strict=True):
         rows = pixel_rows(chain, obs, TARGET, name)
         assert rows.m > 100
-        seen = seen_pixels(chain.model, chain.base_frame, "arm_tool_link", chain.joint_names,
-                           rows.q, TARGET.position[rows.point], T, K, DIST)  # fmt: skip
+        seen = seen_pixels(
+            chain.model,
+            chain.base_frame,
+            "arm_tool_link",
+            chain.joint_names,
+            rows.q,
+            TARGET.position[rows.point],
+            T,
+            K,
+            DIST,
+        )
         assert np.max(np.abs(seen - rows.pixels)) < 1e-9
     argv = ["analyze", "tiago", "--measure", "pixels", *common, "--json"]
     assert main([str(a) for a in argv]) == 0
@@ -226,11 +266,31 @@ def test_two_cameras_on_the_command_line(two, tmp_path, capsys):
     write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
     T = placements[1]
     numbers = [repr(float(v)) for v in (*T[:3, 3], *pin.rpy.matrixToRpy(T[:3, :3]))]
-    argv = ["calibrate", "tiago", "--measure", "pixels", "--data", tmp_path / "obs.csv",
-            "--camera", "xtion_optical_frame", "xtion_link", tmp_path / "intr.yaml",
-            "--camera", "cell_camera", "base_footprint", tmp_path / "intr.yaml", *numbers,
-            "--target", tmp_path / "target.csv", "--tool", "arm_tool_link",
-            "--out", tmp_path / "cal.urdf", "--report", tmp_path / "r.json"]  # fmt: skip
+    argv = [
+        "calibrate",
+        "tiago",
+        "--measure",
+        "pixels",
+        "--data",
+        tmp_path / "obs.csv",
+        "--camera",
+        "xtion_optical_frame",
+        "xtion_link",
+        tmp_path / "intr.yaml",
+        "--camera",
+        "cell_camera",
+        "base_footprint",
+        tmp_path / "intr.yaml",
+        *numbers,
+        "--target",
+        tmp_path / "target.csv",
+        "--tool",
+        "arm_tool_link",
+        "--out",
+        tmp_path / "cal.urdf",
+        "--report",
+        tmp_path / "r.json",
+    ]
     assert main([str(a) for a in argv]) == 0, capsys.readouterr().err
     doc = json.loads((tmp_path / "r.json").read_text())
     assert set(doc["frames"]["cameras"]) == {"xtion_optical_frame", "cell_camera"}
@@ -259,16 +319,20 @@ def two_links(tmp_path_factory):
     """TIAGo's head camera sees its hand and a board on its base: one camera, two terms (one
     per link: xtion_link -> arm_tool_link, xtion_link -> base_footprint), one truth."""
     folder = tmp_path_factory.mktemp("links")
-    chains = [load_chain("tiago", base="xtion_link", tool=t)
-              for t in ("arm_tool_link", "base_footprint")]  # fmt: skip
+    chains = [
+        load_chain("tiago", base="xtion_link", tool=t) for t in ("arm_tool_link", "base_footprint")
+    ]
     true_robot(chains, folder / "true.urdf", seed=6)
-    truths = [load_chain(str(folder / "true.urdf"), base=c.base_frame, tool=c.tool_frame)
-              for c in chains]  # fmt: skip
+    truths = [
+        load_chain(str(folder / "true.urdf"), base=c.base_frame, tool=c.tool_frame) for c in chains
+    ]
     model = chains[0].model
     data = model.createData()
     pin.framesForwardKinematics(model, data, pin.neutral(model))
-    C = (data.oMf[model.getFrameId("xtion_link")].inverse()
-         * data.oMf[model.getFrameId("xtion_optical_frame")]).homogeneous  # fmt: skip
+    C = (
+        data.oMf[model.getFrameId("xtion_link")].inverse()
+        * data.oMf[model.getFrameId("xtion_optical_frame")]
+    ).homogeneous
     step = pin.SE3(pin.exp3(np.array([0.002, -0.001, 0.003])), np.array([0.003, -0.002, 0.001]))
     true_C = C @ step.homogeneous
     joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
@@ -296,8 +360,17 @@ def test_a_target_on_two_links_round_trip_on_the_written_urdf(two_links, tmp_pat
     for chain in chains:
         rows = pixel_rows(chain, obs, target, "xtion_optical_frame")
         assert rows.m > 500
-        seen = seen_pixels(model, "xtion_optical_frame", chain.tool_frame, chain.joint_names,
-                           rows.q, target.position[rows.point], np.eye(4), K, DIST)  # fmt: skip
+        seen = seen_pixels(
+            model,
+            "xtion_optical_frame",
+            chain.tool_frame,
+            chain.joint_names,
+            rows.q,
+            target.position[rows.point],
+            np.eye(4),
+            K,
+            DIST,
+        )
         assert np.max(np.linalg.norm(seen - rows.pixels, axis=1)) < 1e-9
     cameras = [c.state.camera for c in result.chains]
     assert np.array_equal(cameras[0], cameras[1])
@@ -334,12 +407,37 @@ def test_a_target_on_two_links_on_the_command_line(two_links, tmp_path, capsys):
     numbers = [repr(float(v)) for v in (*C[:3, 3], *pin.rpy.matrixToRpy(C[:3, :3]))]
     camera = ["--camera", name, "xtion_link", tmp_path / "intr.yaml"]
     common = ["--target", tmp_path / "target.csv", "--tool", "arm_tool_link"]
-    argv = ["simulate", "tiago", "--measure", "pixels", *camera, *numbers, *common,
-            "--configs", 500, "--seed", 5, "--out", tmp_path / "obs.csv"]  # fmt: skip
+    argv = [
+        "simulate",
+        "tiago",
+        "--measure",
+        "pixels",
+        *camera,
+        *numbers,
+        *common,
+        "--configs",
+        500,
+        "--seed",
+        5,
+        "--out",
+        tmp_path / "obs.csv",
+    ]
     assert main([str(a) for a in argv]) == 0, capsys.readouterr().err
     out = tmp_path / "cal.urdf"
-    argv = ["calibrate", "tiago", "--measure", "pixels", "--data", tmp_path / "obs.csv",
-            *camera, *common, "--out", out, "--report", tmp_path / "r.json"]  # fmt: skip
+    argv = [
+        "calibrate",
+        "tiago",
+        "--measure",
+        "pixels",
+        "--data",
+        tmp_path / "obs.csv",
+        *camera,
+        *common,
+        "--out",
+        out,
+        "--report",
+        tmp_path / "r.json",
+    ]
     assert main([str(a) for a in argv]) == 0, capsys.readouterr().err
     doc = json.loads((tmp_path / "r.json").read_text())
     assert [t["tool"] for t in doc["terms"]] == ["arm_tool_link", "base_footprint"]
@@ -349,8 +447,17 @@ def test_a_target_on_two_links_on_the_command_line(two_links, tmp_path, capsys):
     model = pin.buildModelFromUrdf(str(out))
     for chain in chains:
         rows = pixel_rows(chain, obs, target, name)
-        seen = seen_pixels(model, name, chain.tool_frame, chain.joint_names, rows.q,
-                           target.position[rows.point], np.eye(4), K, DIST)  # fmt: skip
+        seen = seen_pixels(
+            model,
+            name,
+            chain.tool_frame,
+            chain.joint_names,
+            rows.q,
+            target.position[rows.point],
+            np.eye(4),
+            K,
+            DIST,
+        )
         assert rows.m > 500 and np.max(np.linalg.norm(seen - rows.pixels, axis=1)) < 1e-9
     capsys.readouterr()
     argv = ["analyze", "tiago", "--measure", "pixels", *camera, *numbers, *common, "--json"]
@@ -399,6 +506,15 @@ def test_a_target_on_two_links_as_two_pixel_terms(two_links, tmp_path, capsys):
     model = pin.buildModelFromUrdf(str(out))
     for chain in chains:
         rows = pixel_rows(chain, obs, target, name)
-        seen = seen_pixels(model, name, chain.tool_frame, chain.joint_names, rows.q,
-                           target.position[rows.point], np.eye(4), K, DIST)  # fmt: skip
+        seen = seen_pixels(
+            model,
+            name,
+            chain.tool_frame,
+            chain.joint_names,
+            rows.q,
+            target.position[rows.point],
+            np.eye(4),
+            K,
+            DIST,
+        )
         assert np.max(np.linalg.norm(seen - rows.pixels, axis=1)) < 1e-9

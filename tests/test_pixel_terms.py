@@ -108,8 +108,9 @@ def test_head_camera_and_table_touches_round_trip_on_the_written_urdf(joint):
     chain, obs = nominal[2], data[2].obs
     rows = pixel_rows(chain, obs, TARGET, NAME)
     X = TARGET.position[rows.point]
-    seen = seen_pixels(model, NAME, chain.tool_frame, chain.joint_names, rows.q, X, np.eye(4),
-                       K, DIST)  # fmt: skip
+    seen = seen_pixels(
+        model, NAME, chain.tool_frame, chain.joint_names, rows.q, X, np.eye(4), K, DIST
+    )
     assert rows.m > 300
     error = np.linalg.norm(seen - rows.pixels, axis=1)
     assert np.max(error) < 1e-9
@@ -174,8 +175,17 @@ def test_one_pixel_term_through_the_one_entry(tmp_path):
     model = pin.buildModelFromUrdf(str(out))
     rows = pixel_rows(s.nominal, obs, s.target, s.camera)
     chain = s.nominal
-    seen = seen_pixels(model, s.camera, chain.tool_frame, chain.joint_names, rows.q,
-                       s.target.position[rows.point], np.eye(4), K, DIST)  # fmt: skip
+    seen = seen_pixels(
+        model,
+        s.camera,
+        chain.tool_frame,
+        chain.joint_names,
+        rows.q,
+        s.target.position[rows.point],
+        np.eye(4),
+        K,
+        DIST,
+    )
     assert np.max(np.abs(seen - rows.pixels)) < 1e-9
 
 
@@ -216,9 +226,19 @@ def _command_line(nominal, touches, obs, folder, capsys) -> tuple:
     argv = ["calibrate", URDF, "--params", "complete", "--holdout", "0.25"]
     for c, path in zip(nominal[:2], files[:2], strict=True):
         argv += ["--term", "plane", c.base_frame, c.tool_frame, str(path)]
-    argv += ["--term", "pixels", NAME, HEAD[1], str(files[2]),
-             "--camera", NAME, "rgbd_link", str(folder / "intr.yaml"),
-             "--target", str(folder / "target.csv")]  # fmt: skip
+    argv += [
+        "--term",
+        "pixels",
+        NAME,
+        HEAD[1],
+        str(files[2]),
+        "--camera",
+        NAME,
+        "rgbd_link",
+        str(folder / "intr.yaml"),
+        "--target",
+        str(folder / "target.csv"),
+    ]
     out = folder / "cli.urdf"
     code = main([*argv, "--out", str(out), "--report", str(folder / "r.json")])
     assert code == 0, capsys.readouterr().err
@@ -230,8 +250,17 @@ def _worst_px(out, chain, obs, X) -> float:
     pixels of the points ``X`` ``(k, 3)`` of the target (Pinocchio, textbook pinhole)."""
     rows = pixel_rows(chain, obs, TARGET, NAME)
     model = pin.buildModelFromUrdf(str(out))
-    seen = seen_pixels(model, NAME, chain.tool_frame, chain.joint_names, rows.q,
-                       np.asarray(X)[rows.point], np.eye(4), K, DIST)  # fmt: skip
+    seen = seen_pixels(
+        model,
+        NAME,
+        chain.tool_frame,
+        chain.joint_names,
+        rows.q,
+        np.asarray(X)[rows.point],
+        np.eye(4),
+        K,
+        DIST,
+    )
     return float(np.max(np.linalg.norm(seen - rows.pixels, axis=1)))
 
 
@@ -267,10 +296,25 @@ def test_a_pixel_term_without_its_camera_is_one_line(tmp_path, capsys):
     from calib.measurements.intrinsics import write_intrinsics
 
     write_intrinsics(tmp_path / "intr.yaml", INTRINSICS)
-    argv = ["calibrate", URDF, "--term", "plane", *PAIRS[0], str(tmp_path / "l.csv"),
-            "--term", "pixels", NAME, HEAD[1], str(tmp_path / "obs.csv"),
-            "--camera", "other", "rgbd_link", str(tmp_path / "intr.yaml"),
-            "--out", str(tmp_path / "o.urdf")]  # fmt: skip
+    argv = [
+        "calibrate",
+        URDF,
+        "--term",
+        "plane",
+        *PAIRS[0],
+        str(tmp_path / "l.csv"),
+        "--term",
+        "pixels",
+        NAME,
+        HEAD[1],
+        str(tmp_path / "obs.csv"),
+        "--camera",
+        "other",
+        "rgbd_link",
+        str(tmp_path / "intr.yaml"),
+        "--out",
+        str(tmp_path / "o.urdf"),
+    ]
     assert main(argv) != 0
     err = capsys.readouterr().err
     assert err.startswith("calib: error: --term pixels rgbd_optical_frame: give --camera")
@@ -418,8 +462,11 @@ def test_a_pixel_terms_joint_readings_are_checked_against_the_limits(tmp_path):
     obs = simulate_pixels(s.truth, s.camera, s.true_placement, INTRINSICS, s.target, s.q)
     q = obs.q.copy()
     q[obs.q[:, 0] == obs.q[0, 0], 0] = s.nominal.upper[0] + 1.0  # the first posture's rows
-    far = PixelData(PixelCamera(s.camera, s.link, INTRINSICS, s.placement), s.target,
-                    dataclasses.replace(obs, q=q))  # fmt: skip
+    far = PixelData(
+        PixelCamera(s.camera, s.link, INTRINSICS, s.placement),
+        s.target,
+        dataclasses.replace(obs, q=q),
+    )
     for fit in (
         lambda: calibrate(Problem((Term(s.nominal, far),), params="complete")),
         lambda: calibrate_contact_chains([s.nominal], [far], params="complete"),

@@ -38,11 +38,27 @@ def run(capsys, *argv) -> tuple[int, str, str]:
 def _calibrate_ur5(capsys, folder: Path, data: Path, target: Path, tmp_path: Path, *extra):
     """``calibrate ur5 --measure pixels`` of camera cam on world (no numbers): code, out, err."""
     return run(
-        capsys, "calibrate", "ur5", "--measure", "pixels", "--data", data,
-        "--camera", "cam", "world", folder / "intr.yaml", "--target", target,
-        "--tool", "tool0", "--out", tmp_path / "cal.urdf", "--report", tmp_path / "r.json",
+        capsys,
+        "calibrate",
+        "ur5",
+        "--measure",
+        "pixels",
+        "--data",
+        data,
+        "--camera",
+        "cam",
+        "world",
+        folder / "intr.yaml",
+        "--target",
+        target,
+        "--tool",
+        "tool0",
+        "--out",
+        tmp_path / "cal.urdf",
+        "--report",
+        tmp_path / "r.json",
         *extra,
-    )  # fmt: skip
+    )
 
 
 def _placement_numbers(T: np.ndarray) -> list[str]:
@@ -59,9 +75,23 @@ def ur5(tmp_path_factory):
     camera = ["--camera", "cam", "world", folder / "intr.yaml", *_placement_numbers(C)]
     common = [*camera, "--target", folder / "target.csv", "--tool", "tool0"]
     code = main(
-        [str(a) for a in ("simulate", "ur5", "--measure", "pixels", *common, "--out",
-                          folder / "obs.csv", "--configs", 120, "--seed", 2)]
-    )  # fmt: skip
+        [
+            str(a)
+            for a in (
+                "simulate",
+                "ur5",
+                "--measure",
+                "pixels",
+                *common,
+                "--out",
+                folder / "obs.csv",
+                "--configs",
+                120,
+                "--seed",
+                2,
+            )
+        ]
+    )
     assert code == 0
     return folder, common
 
@@ -72,10 +102,28 @@ def test_simulate_calibrate_analyze_on_the_command_line(capsys, tmp_path, ur5):
     folder, common = ur5
     out, report = tmp_path / "cal.urdf", tmp_path / "r.json"
     code, text, err = run(
-        capsys, "calibrate", "ur5", "--measure", "pixels", "--data", folder / "obs.csv",
-        "--camera", "cam", "world", folder / "intr.yaml", "--target", folder / "target.csv",
-        "--base", "world", "--tool", "tool0", "--out", out, "--report", report,
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        "ur5",
+        "--measure",
+        "pixels",
+        "--data",
+        folder / "obs.csv",
+        "--camera",
+        "cam",
+        "world",
+        folder / "intr.yaml",
+        "--target",
+        folder / "target.csv",
+        "--base",
+        "world",
+        "--tool",
+        "tool0",
+        "--out",
+        out,
+        "--report",
+        report,
+    )
     assert code == 0, err
     assert "26 unknowns determined" in text
     obs = read_observations(folder / "obs.csv", UR5_JOINTS, {"cam": INTRINSICS})
@@ -92,8 +140,9 @@ def test_simulate_calibrate_analyze_on_the_command_line(capsys, tmp_path, ur5):
     assert WRONG_LENS not in text and not any(WRONG_LENS in w for w in doc["warnings"])
     code, text, _ = run(capsys, "analyze", "ur5", "--measure", "pixels", *common, "--json")
     assert json.loads(text)["n_base"] == 26  # the count of tests/test_pixel_calibration.py
-    code, text, _ = run(capsys, "analyze", "ur5", "--measure", "pixels", *common, "--json",
-                        "--params", "complete")  # fmt: skip
+    code, text, _ = run(
+        capsys, "analyze", "ur5", "--measure", "pixels", *common, "--json", "--params", "complete"
+    )
     assert json.loads(text)["n_base"] == 30
 
 
@@ -105,15 +154,36 @@ def test_tiago_optical_frame_is_the_start_and_is_moved_in_place(capsys, tmp_path
     camera = ["--camera", "xtion_optical_frame", "xtion_link", tmp_path / "intr.yaml"]
     common = ["--target", tmp_path / "target.csv", "--tool", "arm_tool_link"]
     code, _, err = run(
-        capsys, "simulate", "tiago", "--measure", "pixels", *camera, *nominal, *common,
-        "--out", tmp_path / "obs.csv", "--configs", 600, "--seed", 1,
-    )  # fmt: skip
+        capsys,
+        "simulate",
+        "tiago",
+        "--measure",
+        "pixels",
+        *camera,
+        *nominal,
+        *common,
+        "--out",
+        tmp_path / "obs.csv",
+        "--configs",
+        600,
+        "--seed",
+        1,
+    )
     assert code == 0, err
     out = tmp_path / "cal.urdf"
     code, text, err = run(
-        capsys, "calibrate", "tiago", "--measure", "pixels", "--data", tmp_path / "obs.csv",
-        *camera, *common, "--out", out,
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        "tiago",
+        "--measure",
+        "pixels",
+        "--data",
+        tmp_path / "obs.csv",
+        *camera,
+        *common,
+        "--out",
+        out,
+    )
     assert code == 0, err
     written = out.read_text()
     assert written.count('<link name="xtion_optical_frame"') == 1
@@ -351,10 +421,23 @@ def test_refine_intrinsics_recovers_a_swapped_principal_point(capsys, tmp_path, 
     write_intrinsics(tmp_path / "wrong.yaml", Intrinsics(1280, 960, lens))
     out, report = tmp_path / "cal.urdf", tmp_path / "r.json"
     args = [
-        "calibrate", "ur5", "--measure", "pixels", "--data", folder / "obs.csv",
-        "--camera", "cam", "world", tmp_path / "wrong.yaml", "--target", folder / "target.csv",
-        "--tool", "tool0", "--report", report,
-    ]  # fmt: skip
+        "calibrate",
+        "ur5",
+        "--measure",
+        "pixels",
+        "--data",
+        folder / "obs.csv",
+        "--camera",
+        "cam",
+        "world",
+        tmp_path / "wrong.yaml",
+        "--target",
+        folder / "target.csv",
+        "--tool",
+        "tool0",
+        "--report",
+        report,
+    ]
     code, text, err = run(capsys, *args, "--out", out, "--refine-intrinsics")
     assert code == 0, err
     assert "swapped" in err
@@ -384,10 +467,26 @@ def test_a_wrong_focal_length_is_warned_about(capsys, tmp_path, ur5):
     lens = INTRINSICS.camera.with_parameters([1080.0, 1086.0, 640.0, 480.0, *DIST])
     write_intrinsics(tmp_path / "long.yaml", Intrinsics(1280, 960, lens))
     code, text, err = run(
-        capsys, "calibrate", "ur5", "--measure", "pixels", "--data", folder / "obs.csv",
-        "--camera", "cam", "world", tmp_path / "long.yaml", "--target", folder / "target.csv",
-        "--tool", "tool0", "--out", tmp_path / "cal.urdf", "--report", tmp_path / "r.json",
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        "ur5",
+        "--measure",
+        "pixels",
+        "--data",
+        folder / "obs.csv",
+        "--camera",
+        "cam",
+        "world",
+        tmp_path / "long.yaml",
+        "--target",
+        folder / "target.csv",
+        "--tool",
+        "tool0",
+        "--out",
+        tmp_path / "cal.urdf",
+        "--report",
+        tmp_path / "r.json",
+    )
     assert code == 0, err
     doc = json.loads((tmp_path / "r.json").read_text())
     rms = doc["errors"]["terms"][0]["train"]["pixels"]["calibrated"]["reprojection_rms_px"]
@@ -496,9 +595,14 @@ def test_a_model_worse_on_held_out_pixels_is_refused_report_only(capsys, tmp_pat
     write_observations(tmp_path / "val.csv", other)
     out, report = tmp_path / "cal.urdf", tmp_path / "r.json"
     code, _, err = _calibrate_ur5(
-        capsys, folder, folder / "obs.csv", folder / "target.csv", tmp_path,
-        "--validate", tmp_path / "val.csv",
-    )  # fmt: skip
+        capsys,
+        folder,
+        folder / "obs.csv",
+        folder / "target.csv",
+        tmp_path,
+        "--validate",
+        tmp_path / "val.csv",
+    )
     assert code != 0 and not out.exists()
     worse = "held-out errors on world -> tool0 are worse than the registration's"
     assert "calibration refused: the calibrated model's " + worse in err
@@ -554,8 +658,9 @@ def test_simulate_pixels_refuses_an_option_it_would_ignore(capsys, tmp_path, ur5
     """simulate --measure pixels: an option of the other campaigns is an error, not ignored."""
     _, common = ur5
     out = tmp_path / "obs.csv"
-    code, _, err = run(capsys, "simulate", "ur5", "--measure", "pixels", *common, *extra,
-                       "--out", out)  # fmt: skip
+    code, _, err = run(
+        capsys, "simulate", "ur5", "--measure", "pixels", *common, *extra, "--out", out
+    )
     assert code == 2 and f"{extra[0]} is not for --measure pixels" in err, err
     assert not out.exists()
 
@@ -581,11 +686,30 @@ def test_term_pixels_refuses_the_target_as_an_output_before_the_fit(capsys, tmp_
     target = tmp_path / "target.csv"
     target.write_bytes((folder / "target.csv").read_bytes())
     code, out, err = run(
-        capsys, "calibrate", "ur5", "--camera", "cam", "world", folder / "intr.yaml",
-        "--target", target, "--term", "pixels", "cam", "tool0", folder / "obs.csv",
-        "--term", "position", "base_link", "wrist_3_link", folder / "obs.csv",
-        "--out", tmp_path / "cal.urdf", "--report", target,
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        "ur5",
+        "--camera",
+        "cam",
+        "world",
+        folder / "intr.yaml",
+        "--target",
+        target,
+        "--term",
+        "pixels",
+        "cam",
+        "tool0",
+        folder / "obs.csv",
+        "--term",
+        "position",
+        "base_link",
+        "wrist_3_link",
+        folder / "obs.csv",
+        "--out",
+        tmp_path / "cal.urdf",
+        "--report",
+        target,
+    )
     assert code == 2 and "would overwrite --target" in err, err
     assert out == "" and target.read_bytes() == (folder / "target.csv").read_bytes()
 
@@ -597,12 +721,31 @@ def test_measure_with_terms_is_refused(capsys, tmp_path, ur5, measure):
     folder, _ = ur5
     data = ["--data", folder / "obs.csv"] if measure == "pixels" else []  # pixels needs it
     code, out, err = run(
-        capsys, "calibrate", "ur5", "--measure", measure, "--camera", "cam", "world",
-        folder / "intr.yaml", "--target", folder / "target.csv", *data,
-        "--term", "pixels", "cam", "tool0", folder / "obs.csv",
-        "--term", "position", "base_link", "wrist_3_link", folder / "obs.csv",
-        "--out", tmp_path / "cal.urdf",
-    )  # fmt: skip
+        capsys,
+        "calibrate",
+        "ur5",
+        "--measure",
+        measure,
+        "--camera",
+        "cam",
+        "world",
+        folder / "intr.yaml",
+        "--target",
+        folder / "target.csv",
+        *data,
+        "--term",
+        "pixels",
+        "cam",
+        "tool0",
+        folder / "obs.csv",
+        "--term",
+        "position",
+        "base_link",
+        "wrist_3_link",
+        folder / "obs.csv",
+        "--out",
+        tmp_path / "cal.urdf",
+    )
     assert code == 2 and out == "" and "Traceback" not in err
     assert "is not for --term" in err or "--term is not for --measure pixels" in err, err
     assert not (tmp_path / "cal.urdf").exists()
@@ -617,8 +760,15 @@ def test_an_observations_file_as_configurations_counts_postures(capsys, tmp_path
     assert obs.m > postures
     code, out, err = run(capsys, "design", "ur5", "--evaluate", folder / "obs.csv")
     assert code == 0 and f"ur5: {postures} configurations from" in out, err
-    code, out, err = run(capsys, "simulate", "ur5", "--configs-file", folder / "obs.csv",
-                         "--out", tmp_path / "meas.csv")  # fmt: skip
+    code, out, err = run(
+        capsys,
+        "simulate",
+        "ur5",
+        "--configs-file",
+        folder / "obs.csv",
+        "--out",
+        tmp_path / "meas.csv",
+    )
     assert code == 0 and f"ur5: {postures} configurations, measure position" in out, err
 
 
@@ -635,8 +785,18 @@ def test_analyze_terms_refuse_a_camera_no_term_uses(capsys, ur5):
     """``analyze --term`` without a pixels term: ``--camera`` and ``--target`` are errors, as
     for calibrate (they were ignored)."""
     folder, common = ur5
-    terms = ["--term", "position", "base_link", "tool0", folder / "obs.csv",
-             "--term", "position", "base_link", "wrist_3_link", folder / "obs.csv"]  # fmt: skip
+    terms = [
+        "--term",
+        "position",
+        "base_link",
+        "tool0",
+        folder / "obs.csv",
+        "--term",
+        "position",
+        "base_link",
+        "wrist_3_link",
+        folder / "obs.csv",
+    ]
     code, _, err = run(capsys, "analyze", "ur5", *terms, *common[:-2])  # --camera, --target
     assert code == 2 and "--camera is for --measure pixels" in err, err
 
@@ -654,10 +814,23 @@ def test_calibrate_pixels_lists_each_cameras_intrinsics_among_its_inputs(
     intr = tmp_path / "intr.yaml"
     intr.write_bytes((folder / "intr.yaml").read_bytes())
     argv = [
-        "calibrate", "ur5", "--measure", "pixels", "--data", folder / "obs.csv",
-        "--camera", "cam", "world", intr, "--target", folder / "target.csv",
-        "--tool", "tool0", "--out", tmp_path / "cal.urdf",
-    ]  # fmt: skip
+        "calibrate",
+        "ur5",
+        "--measure",
+        "pixels",
+        "--data",
+        folder / "obs.csv",
+        "--camera",
+        "cam",
+        "world",
+        intr,
+        "--target",
+        folder / "target.csv",
+        "--tool",
+        "tool0",
+        "--out",
+        tmp_path / "cal.urdf",
+    ]
     code, out, err = run(capsys, *argv, "--report", intr)
     assert code == 2 and f"--report {intr} would overwrite the intrinsics of --camera cam" in err
     assert out == "" and intr.read_bytes() == (folder / "intr.yaml").read_bytes()

@@ -78,8 +78,12 @@ def test_tree_figure_holds_the_reports_errors():
     lines = lines_by_label(fig.axes[0])
     for part, name in (("train", "fitted"), ("held_out", "held out")):  # every tool's together
         for stage in ("registration", "calibrated"):
-            y = np.concatenate([lines[f"{k + 1}: {t} (position) {name}: {stage}"] for k, t in
-                                enumerate(tree.tool_frames)])  # fmt: skip
+            y = np.concatenate(
+                [
+                    lines[f"{k + 1}: {t} (position) {name}: {stage}"]
+                    for k, t in enumerate(tree.tool_frames)
+                ]
+            )
             want = doc["errors"][part][stage]
             assert rms(y) == pytest.approx(want["position_rms_mm"], rel=1e-9)
             assert y.max() == pytest.approx(want["position_max_mm"], rel=1e-9)
@@ -142,8 +146,9 @@ def test_several_terms_figure_holds_each_terms_errors():
 def test_refused_model_writes_its_report_and_plot_but_no_urdf_nor_origins(tmp_path, capsys):
     """No geometric error and 2 mm of noise: the complete tree model only overfits (refused)."""
     tree = calib.load_robot("bolt")
-    camp = simulate_tree(tree, 20, markers=[0.01, 0, 0.02], error_mm=0, error_mrad=0,
-                               noise_mm=2, seed=0)  # fmt: skip
+    camp = simulate_tree(
+        tree, 20, markers=[0.01, 0, 0.02], error_mm=0, error_mrad=0, noise_mm=2, seed=0
+    )
     data = tmp_path / "m.csv"
     write_measurements(data, camp.measurements)
     out, report, plot, origins = (tmp_path / n for n in ("o.urdf", "r.json", "p.png", "o.yaml"))

@@ -198,8 +198,13 @@ def test_a_noise_free_fit_of_the_nominal_robot_is_not_refused_on_round_off():
     the model is accepted, not refused as '0.000 > 0.000 mm' worse than its registration."""
     arms = [load_robot(URDF, b, t) for b, t in PAIRS]
     data = [simulate_contacts(c, 60, "plane", error_mm=0, error_mrad=0, seed=8).data for c in arms]
-    result = calibrate(Problem(tuple(Term(c, d) for c, d in zip(arms, data, strict=True)),
-                               params="complete", holdout=0.25))  # fmt: skip
+    result = calibrate(
+        Problem(
+            tuple(Term(c, d) for c, d in zip(arms, data, strict=True)),
+            params="complete",
+            holdout=0.25,
+        )
+    )
     assert result.accepted, result.refusal
     for part in result.chains:
         assert part.stats["held_out"].weighted_mm < 1e-6

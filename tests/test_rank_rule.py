@@ -31,17 +31,28 @@ from calib.calibration import contact_checks, engine, solve
 # with the measurement frame's rotations about x and y, j1:theta2 is a combination of condition
 # 4.9e5 at the registration (9.7e3 at the solution), which refused auto's fit.
 NEARLY = (
-    ("prismatic", (0, 0, -0.272386433362),
-     (-0.70766265698, 0.614402009923, 0.348889286333)),
-    ("revolute", (0.39564824932, -0.392935826159, 0.144154115257),
-     (-0.707672603501, 0.614377366772, 0.348912506872)),
-    ("prismatic", (-0.063002894437, 0.0546969773759, 0.031063090092),
-     (0.707672603501, -0.614377366772, -0.348912506872)),
-    ("revolute", (-0.0454478615658, 0.0394562928903, 0.0224077168346),
-     (0.753880811251, 0.656150883366, -0.0336116153318)),
-    ("revolute", (-0.0876557751504, -0.0762924502636, 0.00390811405729),
-     (-0.422973436353, 0.131257089643, 0.896585215447)),
-)  # fmt: skip
+    ("prismatic", (0, 0, -0.272386433362), (-0.70766265698, 0.614402009923, 0.348889286333)),
+    (
+        "revolute",
+        (0.39564824932, -0.392935826159, 0.144154115257),
+        (-0.707672603501, 0.614377366772, 0.348912506872),
+    ),
+    (
+        "prismatic",
+        (-0.063002894437, 0.0546969773759, 0.031063090092),
+        (0.707672603501, -0.614377366772, -0.348912506872),
+    ),
+    (
+        "revolute",
+        (-0.0454478615658, 0.0394562928903, 0.0224077168346),
+        (0.753880811251, 0.656150883366, -0.0336116153318),
+    ),
+    (
+        "revolute",
+        (-0.0876557751504, -0.0762924502636, 0.00390811405729),
+        (-0.422973436353, 0.131257089643, 0.896585215447),
+    ),
+)
 NEARLY_TOOL = (
     (0.214700292846, 0.523332289575, 0.315024989561),
     (-2.01611466449, -1.48536580449, -1.7525355927),
@@ -298,8 +309,15 @@ def _inseparable(refusal: str | None) -> list[str]:
 
 def _chain_urdf(ch) -> str:
     """A random chain of test_properties as a URDF (one tool, t0)."""
-    tree = RandomTree(list(range(-1, ch.n - 1)), ch.points, ch.directions, ch.sigma,
-                      [(ch.n - 1, ch.tool)], ch.relations, (False,))  # fmt: skip
+    tree = RandomTree(
+        list(range(-1, ch.n - 1)),
+        ch.points,
+        ch.directions,
+        ch.sigma,
+        [(ch.n - 1, ch.tool)],
+        ch.relations,
+        (False,),
+    )
     return urdf_text(tree)
 
 

@@ -42,11 +42,30 @@ from calib.measurements.tree_campaign import simulate_tree
 REAL = Path(__file__).resolve().parents[1] / "data" / "realdata"
 
 TOP = [
-    "format_version", "deprecated", "robot", "urdf", "shape", "terms", "params", "accepted",
-    "refusal", "converged", "message", "iterations", "parameters", "errors", "frames",
-    "objects", "fit", "model_choice", "outliers", "compliance", "model", "warnings",
+    "format_version",
+    "deprecated",
+    "robot",
+    "urdf",
+    "shape",
+    "terms",
+    "params",
+    "accepted",
+    "refusal",
+    "converged",
+    "message",
+    "iterations",
+    "parameters",
+    "errors",
+    "frames",
+    "objects",
+    "fit",
+    "model_choice",
+    "outliers",
+    "compliance",
+    "model",
+    "warnings",
     "timings_ms",
-]  # fmt: skip
+]
 """Format 3's top-level keys, in order, for every shape and kind."""
 
 PARAMETER = {"name", "joint", "value", "std", "unit", "prior_weight"}
@@ -234,9 +253,18 @@ def test_tiago_report_names_each_rows_joint_as_calib_show(tmp_path, capsys):
     frames = ["--base", "base_footprint", "--tool", "wrist_ft_tool_link"]
     report = tmp_path / "r.json"
     code = main(
-        ["calibrate", urdf, *frames, "--data", str(point1), "--out", str(tmp_path / "c.urdf"),
-         "--report", str(report)]
-    )  # fmt: skip
+        [
+            "calibrate",
+            urdf,
+            *frames,
+            "--data",
+            str(point1),
+            "--out",
+            str(tmp_path / "c.urdf"),
+            "--report",
+            str(report),
+        ]
+    )
     assert code == 0
     printed = capsys.readouterr().out  # the printed table names the joint too
     assert re.search(r"arm_5_joint:theta6\s+=", printed), printed
@@ -341,9 +369,23 @@ def test_load_calibrated_and_predict_read_a_contact_report(tmp_path, capsys):
     write_contacts(data, camp.data)
     out, report = tmp_path / "c.urdf", tmp_path / "r.json"
     code = main(
-        ["calibrate", urdf, "--base", base, "--tool", tool, "--measure", "plane",
-         "--data", str(data), "--out", str(out), "--report", str(report)]
-    )  # fmt: skip
+        [
+            "calibrate",
+            urdf,
+            "--base",
+            base,
+            "--tool",
+            tool,
+            "--measure",
+            "plane",
+            "--data",
+            str(data),
+            "--out",
+            str(out),
+            "--report",
+            str(report),
+        ]
+    )
     assert code == 0
     doc = json.loads(report.read_text())
     model = load_calibrated(out, report)
@@ -362,8 +404,18 @@ def test_load_calibrated_and_predict_read_a_contact_report(tmp_path, capsys):
         + "\n"
     )
     capsys.readouterr()
-    code = main(["predict", str(out), "--compliance", str(report), "--configs", str(configs),
-                 "--out", str(tmp_path / "p.csv")])  # fmt: skip
+    code = main(
+        [
+            "predict",
+            str(out),
+            "--compliance",
+            str(report),
+            "--configs",
+            str(configs),
+            "--out",
+            str(tmp_path / "p.csv"),
+        ]
+    )
     assert code == 0 and (tmp_path / "p.csv").exists()
 
 
@@ -410,8 +462,10 @@ def test_load_calibrated_reads_each_touching_term_on_its_own_table_of_one_id(tmp
     within the touches' noise)."""
     from calib import Problem, Term, load_calibrated
 
-    arms = [load_robot("talos_full_v2.urdf", f"{s}_sole_link", f"gripper_{s}_base_link")
-            for s in ("left", "right")]  # fmt: skip
+    arms = [
+        load_robot("talos_full_v2.urdf", f"{s}_sole_link", f"gripper_{s}_base_link")
+        for s in ("left", "right")
+    ]
     data = [simulate_contacts(c, 40, "plane", seed=2 + i).data for i, c in enumerate(arms)]
     result = calibrate(Problem(tuple(Term(c, d) for c, d in zip(arms, data, strict=True))))
     assert result.planes == 2
@@ -439,8 +493,10 @@ def test_each_touching_term_is_read_against_the_table_it_touched(tmp_path):
 
     from calib import Problem, Term, load_calibrated
 
-    arms = [load_robot("talos_full_v2.urdf", "base_link", f"gripper_{s}_base_link")
-            for s in ("left", "right")]  # fmt: skip
+    arms = [
+        load_robot("talos_full_v2.urdf", "base_link", f"gripper_{s}_base_link")
+        for s in ("left", "right")
+    ]
     data = [simulate_contacts(c, 40, "plane", seed=2 + i).data for i, c in enumerate(arms)]
     data[1] = dataclasses.replace(data[1], ids=tuple("right_" + i for i in data[1].ids))
     urdf, report = tmp_path / "c.urdf", tmp_path / "c.json"
@@ -563,8 +619,10 @@ def test_real_talos_joint_fit_names_each_direction_by_its_joint_and_unit():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         files = ("left_train.csv", "right_train.csv")
-        terms = [Term(c, read_contacts(real / f, c, "plane"), guess=(0, 0, -0.12))
-                 for c, f in zip(chains, files, strict=True)]  # fmt: skip
+        terms = [
+            Term(c, read_contacts(real / f, c, "plane"), guess=(0, 0, -0.12))
+            for c, f in zip(chains, files, strict=True)
+        ]
         result = calibrate(Problem(tuple(terms), holdout=0.25))
     model = pin.buildModelFromUrdf(str(chains[0].urdf_path))
     on_chains = {str(model.names[j]) for c in chains for j in c.joint_ids}

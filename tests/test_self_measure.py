@@ -196,8 +196,12 @@ class _Robot:
         m = self.model
         out = []
         for j in dict.fromkeys(m.getJointId(n) for n in joint_names):
-            out.append((lambda j=j: m.jointPlacements[j].copy(),
-                        lambda M, j=j: m.jointPlacements.__setitem__(j, M)))  # fmt: skip
+            out.append(
+                (
+                    lambda j=j: m.jointPlacements[j].copy(),
+                    lambda M, j=j: m.jointPlacements.__setitem__(j, M),
+                )
+            )
         for f in frames:
 
             def put(M, f=f):
@@ -207,8 +211,12 @@ class _Robot:
 
             out.append((lambda f=f: m.frames[f].placement.copy(), put))
         for key in [k for k in self.extra if k != "marker"]:
-            out.append((lambda key=key: self.extra[key].copy(),
-                        lambda M, key=key: self.extra.__setitem__(key, M)))  # fmt: skip
+            out.append(
+                (
+                    lambda key=key: self.extra[key].copy(),
+                    lambda M, key=key: self.extra.__setitem__(key, M),
+                )
+            )
         return out
 
     def rank(self, joint_names, frames, eps=1e-6, tol=1e-7) -> int:
@@ -249,8 +257,10 @@ def test_tiago_head_to_hand_count_equals_a_pinocchio_rank():
     chain = load_chain("tiago", "xtion_optical_frame", "arm_tool_link")
     data = simulate(chain, 40, "position", marker=MARKER, seed=5).measurements
     r = calibrate_contact_chains([chain], [data], params="complete")
-    robot = _Robot(chain.urdf_path, [("xtion_optical_frame", "arm_tool_link",
-                                      _joints(chain, data.q), "position")])  # fmt: skip
+    robot = _Robot(
+        chain.urdf_path,
+        [("xtion_optical_frame", "arm_tool_link", _joints(chain, data.q), "position")],
+    )
     robot.extra["marker"] = np.array(MARKER)
     camera = _frame(robot.model, "xtion_optical_frame")
     assert r.unknowns == r.identifiable == robot.rank(chain.joint_names, [camera])
@@ -266,8 +276,10 @@ def test_talos_head_and_contacts_count_equals_a_pinocchio_rank():
     data = [simulate_contacts(c, 24, "plane", seed=1, **zero).data for c in nominal[:2]]
     data.append(simulate(nominal[2], 24, "position", marker=MARKER, seed=2, **zero).measurements)
     r = calibrate_contact_chains(nominal, data, params="complete")
-    terms = [(c.base_frame, c.tool_frame, _joints(c, d.q), "plane" if k < 2 else "position")
-             for k, (c, d) in enumerate(zip(nominal, data, strict=True))]  # fmt: skip
+    terms = [
+        (c.base_frame, c.tool_frame, _joints(c, d.q), "plane" if k < 2 else "position")
+        for k, (c, d) in enumerate(zip(nominal, data, strict=True))
+    ]
     robot = _Robot(nominal[0].urdf_path, terms)
     for k in range(2):
         first = {n: v[:1] for n, v in terms[k][2].items()}
@@ -337,8 +349,9 @@ def test_a_term_worse_than_its_registration_is_refused(tmp_path):
     moved by ~3 mm / 3 mrad): its held-out errors grow, the model is refused, and no URDF is
     written, though both arms' touches fit."""
     nominal = _talos()
-    truth = true_robot(nominal, tmp_path / "t.urdf", measuring=nominal[2:], seed=3,
-                       error_mm=3.0, error_mrad=3.0)  # fmt: skip
+    truth = true_robot(
+        nominal, tmp_path / "t.urdf", measuring=nominal[2:], seed=3, error_mm=3.0, error_mrad=3.0
+    )
     true = _talos(str(truth.urdf))
     zero = {"error_mm": 0.0, "error_mrad": 0.0}
     data = [simulate_contacts(c, 30, "plane", seed=1, **zero).data for c in true[:2]]

@@ -196,10 +196,14 @@ def test_counts_figure_is_grouped_by_kind_of_robot_and_readable(pose_rows):
     panels = {ax.get_title(): ax for ax in fig.axes if ax.get_visible()}
     kinds = [title.rsplit(" (", 1)[0] for title in panels]
     assert kinds == [
-        "calib's own models", "Arms", "Arms of humanoids", "Mobile and legged/aerial manipulators",
-        "Chains through coupled joints: fingers of grippers and hands", "Legs",
+        "calib's own models",
+        "Arms",
+        "Arms of humanoids",
+        "Mobile and legged/aerial manipulators",
+        "Chains through coupled joints: fingers of grippers and hands",
+        "Legs",
         "Trees: whole robots, several tools sharing joints",
-    ]  # the catalog file's section headings, in order  # fmt: skip
+    ]  # the catalog file's section headings, in order
     ok = {r.robot: r for r in pose_rows if r.error is None}
     names = {
         k: [t.get_text() for t in ax.get_xticklabels()]

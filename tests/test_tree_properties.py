@@ -209,14 +209,22 @@ def test_forward_of_every_tool_equals_pinocchio(tr):
 # with a tool on its last axis.
 BRANCHING = (
     build_tree(
-        1, [-1, 0, 0, 0], ("generic", "parallel", "intersecting", "coincident"),
-        [0, 0, 1, 0], [], [False],
+        1,
+        [-1, 0, 0, 0],
+        ("generic", "parallel", "intersecting", "coincident"),
+        [0, 0, 1, 0],
+        [],
+        [False],
     ),
     build_tree(
-        2, [-1, 0, 1, 1], ("coincident", "parallel", "perpendicular_intersecting", "parallel"),
-        [1, 0, 0, 0], [1], [True, False],
+        2,
+        [-1, 0, 1, 1],
+        ("coincident", "parallel", "perpendicular_intersecting", "parallel"),
+        [1, 0, 0, 0],
+        [1],
+        [True, False],
     ),
-)  # fmt: skip
+)
 
 
 @TREES
