@@ -28,7 +28,12 @@ from ..kinematics.standing import JointReadings
 from ..kinematics.tree import Tree, robot_argument
 from ..measurements.limits import check_limits, warn_default_ranges
 from .constraints import Constraints, FilterReport, cheap_filters, variable_bounds
-from .contact_design import checked_contact_chain, contact_candidates, contact_observation_model
+from .contact_design import (
+    ContactCandidates,
+    checked_contact_chain,
+    contact_candidates,
+    contact_observation_model,
+)
 from .design_text import design_text, indices_table
 from .exchange import EXCHANGE_CRITERIA, CandidatesExhaustedError, least_i, optimal_subset
 from .observability import (
@@ -263,7 +268,9 @@ def design(
     )
 
 
-def _candidates(chain, asked: tuple, candidates, seed: int, margin: float, readings, progress):
+def _candidates(
+    chain: Chain | Tree, asked: tuple, candidates, seed: int, margin: float, readings, progress
+) -> tuple[Chain | Tree, ContactCandidates | None, np.ndarray, JointReadings | None]:
     """The chain, the contact's candidates (or None), the candidates ``(N, n)``, the readings.
 
     ``asked``: the measure, its contact (or None), the marker, the parameter level and the

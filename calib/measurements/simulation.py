@@ -28,7 +28,7 @@ from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import Identifiability, analyze_model
 from ..identification.jacobian import measured_point
 from ..identification.kinds import campaign_kind
-from ..identification.measures import MeasureKind
+from ..identification.measures import MeasureKind, Measurement
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
@@ -251,7 +251,7 @@ def simulate(
     return Campaign(data, truth)
 
 
-def _checked_noise(noise_mm, noise_mrad, measurement: MeasureKind) -> tuple[float, float]:
+def _checked_noise(noise_mm, noise_mrad, measurement: Measurement) -> tuple[float, float]:
     """The position and orientation noise [mm, mrad] (the latter: ``noise_mm``'s by default).
 
     Raises:
