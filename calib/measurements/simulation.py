@@ -279,7 +279,9 @@ def _configurations(chain: Chain, configs: int | np.ndarray, seed: int) -> np.nd
     return q
 
 
-def perturbed(nominal: MDHModel, pset: ParameterSet, error: tuple, seed: int):
+def perturbed(
+    nominal: MDHModel, pset: ParameterSet, error: tuple[float, float], seed: int
+) -> tuple[np.ndarray, MDHModel]:
     """The true errors (stream ``[seed, 1]``) and the true model; ``error``: [mm, mrad].
 
     Every parameter of ``pset`` is perturbed by a normal error of standard deviation
