@@ -340,4 +340,4 @@ def _several(marker) -> list:
     return [marker]
 
 
-__all__ = ["Campaign", "SimulationTruth", "chain_argument", "simulate"]
+__all__ = ["Campaign", "SimulationTruth", "chain_argument", "perturbed", "simulate"]
