@@ -312,22 +312,8 @@ def choose(
     selection: Selection | None = None
     prior = None
     if level == "auto" and columns:
-        all_names = wide.names()
-        cand_names = tuple(all_names[c] for c in columns)
-        drawn = None if generic is None else generic.sample(fixed, len(columns), notes)
-        data = sampled(data, drawn)
-        J, objects, free = _selection_columns(wide, start, data, columns, at)
-        groups = _postures(data) if generic is None else generic.groups(drawn)
-        e = start.residuals(data, None, at.kinematics(data))
-        seen = data.seen_rows(e.shape[1])  # a marker not seen: its rows 0 (no equation)
-        e, measured = (e, None) if seen is None else (np.where(seen, e, 0.0), seen.sum(axis=1))
-        keep = tuple(cand_names.index(n) for n in forced if n in cand_names)
-        selection, weights = select(
-            J, e, free, cand_names, keep, groups=groups, objects=objects, measured=measured
-        )
+        selection, prior = _auto(wide, start, (data, at), columns, (generic, forced, notes))
         columns = [columns[k] for k in selection.index]  # by position: names may repeat
-        if np.any(weights):
-            prior = np.r_[np.zeros(fixed), weights]
     split = fixed + len(offered)
     free_dirs = tuple(offered[c - fixed] for c in columns if c < split)
     model = wide.with_free(free_dirs, tuple(comp[c - split] for c in columns if c >= split))
@@ -336,6 +322,31 @@ def choose(
         prior = np.r_[np.zeros(fixed), prior[fixed:][[columns.index(c) for c in order]]]
     kin = None if by_block(model, start) else at.kinematics(rows)
     return model, kin, selection, prior
+
+
+def _auto(wide: ChainsModel, start: ChainsState, at_data: tuple, columns: list, asked: tuple):
+    """``auto``'s selection among ``columns`` and its prior weights (None: all zero).
+
+    ``at_data``: the data and the start's Jacobians (:class:`AtStart`); ``asked``: the
+    generic configurations (or None), the names the user forced free, the notes to add to.
+    """
+    data, at = at_data
+    generic, forced, notes = asked
+    fixed = wide.fixed
+    all_names = wide.names()
+    cand_names = tuple(all_names[c] for c in columns)
+    drawn = None if generic is None else generic.sample(fixed, len(columns), notes)
+    data = sampled(data, drawn)
+    J, objects, free = _selection_columns(wide, start, data, columns, at)
+    groups = _postures(data) if generic is None else generic.groups(drawn)
+    e = start.residuals(data, None, at.kinematics(data))
+    seen = data.seen_rows(e.shape[1])  # a marker not seen: its rows 0 (no equation)
+    e, measured = (e, None) if seen is None else (np.where(seen, e, 0.0), seen.sum(axis=1))
+    keep = tuple(cand_names.index(n) for n in forced if n in cand_names)
+    selection, weights = select(
+        J, e, free, cand_names, keep, groups=groups, objects=objects, measured=measured
+    )
+    return selection, np.r_[np.zeros(fixed), weights] if np.any(weights) else None
 
 
 def _postures(data: ChainsData) -> np.ndarray | None:

@@ -21,7 +21,6 @@ from ..core.checks import DESIGN_BYTES_PER_CANDIDATE_JOINT as DESIGN_PER_JOINT
 from ..core.checks import check_count, check_work, shown
 from ..core.choices import CONTACT_MEASURES, DEFAULT_CANDIDATES, DEFAULT_MEASURE, DEFAULT_SET
 from ..core.progress import phase, steps
-from ..core.words import counted
 from ..exceptions import InvalidArgumentError
 from ..identification.contacts import Contact, contact_kind
 from ..kinematics.robot import Chain
@@ -29,7 +28,13 @@ from ..kinematics.standing import JointReadings
 from ..kinematics.tree import Tree, robot_argument
 from ..measurements.limits import check_limits, warn_default_ranges
 from .constraints import Constraints, FilterReport, cheap_filters, variable_bounds
-from .contact_design import checked_contact_chain, contact_candidates, contact_observation_model
+from .contact_design import (
+    ContactCandidates,
+    checked_contact_chain,
+    contact_candidates,
+    contact_observation_model,
+)
+from .design_text import design_text, indices_table
 from .exchange import EXCHANGE_CRITERIA, CandidatesExhaustedError, least_i, optimal_subset
 from .observability import (
     CRITERIA,
@@ -222,50 +227,26 @@ def design(
     k = check_count(configs, "the number of configurations")
     seed = check_count(seed, "the seed", 0)
     constraints = _checked_options(criterion, constraints, progress)
-    contact = _contact_of(measure)
     readings = _checked_readings(chain, candidates, readings)
-    cands = None
-    if contact is not None:
-        chain = checked_contact_chain(chain, contact, marker, params)
-        if orientation_weight != 1.0:
-            raise InvalidArgumentError(
-                f"orientation_weight weighs the orientation rows of pose data: a "
-                f"{contact.label} design weighs no row"
-            )
-        with phase(progress, "design: candidates on the contact"):
-            cands = contact_candidates(chain, contact, candidates, seed, constraints.margin)
-        q_all = cands.q
-        readings = None if readings is None else readings.take(cands.rows)
-    else:
-        q_all = _instrument_candidates(chain, candidates, seed, constraints.margin)
-        check_model_arguments(measure, params, orientation_weight, chain.is_tree)
+    asked = (measure, _contact_of(measure), marker, params, orientation_weight)
+    chain, cands, q_all, readings = _candidates(
+        chain, asked, candidates, seed, constraints.margin, readings, progress
+    )
     q, lazy = _filtered(chain, q_all, marker, constraints, k, readings)
     check = lazy.ok if lazy.active else None
     clock.append(time.perf_counter())
     rng = np.random.default_rng([seed, 6])
-    if cands is not None and isinstance(chain, Chain) and contact is not None:
-        model = contact_observation_model(chain, cands, contact)
-    else:
-        model = observation_model(chain, measure, marker, params, orientation_weight, seed=seed)
-    rows = _draw(len(q), REFERENCE_CONFIGS, rng, check)
-    if len(rows) < min(k, REFERENCE_CONFIGS):  # every candidate checked: too few pass
-        raise _too_few(lazy.report(), k)
-    ref = reference(model, q[rows])
+    model = _observation(chain, cands, asked, seed)
+    ref = _reference(model, q, rng, check, (lazy, k))
     with phase(progress, f"design: Jacobians of {len(q)} candidates"):
         J = model.jacobian(q)
     clock.append(time.perf_counter())
-    try:
-        result = optimal_subset(J, k, criterion, ref.mean, progress, check)
-    except CandidatesExhaustedError:
-        raise _too_few(lazy.report(), k) from None
+    result = _exchanged(J, (k, criterion), ref, progress, check, lazy)
     clock.append(time.perf_counter())
     chosen = np.array(result.design)
-    n_random = check_count(random_sets, "the number of random sets")
-    sets = steps(progress, range(n_random), "design: random sets", n_random)
-    rand = tuple(_indices_rows(J, rows, ref) for rows in _random_sets(len(q), k, rng, check, sets))
+    rand = _random_indices(J, ref, (k, random_sets), rng, check, progress)
     clock.append(time.perf_counter())
     report = lazy.report()
-    stages = ("filters", "jacobian", "exchange", "random")
     return Design(
         robot=chain.name,
         tools=chain.tool_frames,
@@ -281,12 +262,86 @@ def design(
         exchanges=result.exchanges,
         sweeps=result.sweeps,
         seed=seed,
-        timings_ms={
-            s: 1e3 * (b - a) for s, a, b in zip(stages, clock[:-1], clock[1:], strict=True)
-        },
+        timings_ms=_timings(clock),
         contact=None if cands is None else cands.frame,
         readings=None if lazy.readings is None else lazy.readings.take(chosen),
     )
+
+
+def _candidates(
+    chain: Chain | Tree, asked: tuple, candidates, seed: int, margin: float, readings, progress
+) -> tuple[Chain | Tree, ContactCandidates | None, np.ndarray, JointReadings | None]:
+    """The chain, the contact's candidates (or None), the candidates ``(N, n)``, the readings.
+
+    ``asked``: the measure, its contact (or None), the marker, the parameter level and the
+    orientation weight. With a contact, the candidates are postures on it (the chain checked
+    for it, the readings those of the postures kept); else drawn or the user's, checked.
+    """
+    measure, contact, marker, params, orientation_weight = asked
+    if contact is None:
+        q_all = _instrument_candidates(chain, candidates, seed, margin)
+        check_model_arguments(measure, params, orientation_weight, chain.is_tree)
+        return chain, None, q_all, readings
+    chain = checked_contact_chain(chain, contact, marker, params)
+    if orientation_weight != 1.0:
+        raise InvalidArgumentError(
+            f"orientation_weight weighs the orientation rows of pose data: a "
+            f"{contact.label} design weighs no row"
+        )
+    with phase(progress, "design: candidates on the contact"):
+        cands = contact_candidates(chain, contact, candidates, seed, margin)
+    readings = None if readings is None else readings.take(cands.rows)
+    return chain, cands, cands.q, readings
+
+
+def _observation(chain, cands, asked: tuple, seed: int) -> ObservationModel:
+    """The observation model of the calibration: on the contact, or of the measure."""
+    measure, contact, marker, params, orientation_weight = asked
+    if cands is not None and isinstance(chain, Chain) and contact is not None:
+        return contact_observation_model(chain, cands, contact)
+    return observation_model(chain, measure, marker, params, orientation_weight, seed=seed)
+
+
+def _reference(model: ObservationModel, q: np.ndarray, rng, check, filters: tuple) -> Reference:
+    """The reference set of I and G: ``REFERENCE_CONFIGS`` random candidates the checks pass.
+
+    ``filters``: the lazy checks and the number of configurations asked, k.
+
+    Raises:
+        InvalidArgumentError: Fewer than k (or ``REFERENCE_CONFIGS``) pass, every one checked.
+    """
+    lazy, k = filters
+    rows = _draw(len(q), REFERENCE_CONFIGS, rng, check)
+    if len(rows) < min(k, REFERENCE_CONFIGS):  # every candidate checked: too few pass
+        raise _too_few(lazy.report(), k)
+    return reference(model, q[rows])
+
+
+def _exchanged(J: np.ndarray, asked: tuple, ref: Reference, progress, check, lazy):
+    """The greedy start and exchanges (:func:`optimal_subset`); ``asked``: k, the criterion.
+
+    Raises:
+        InvalidArgumentError: The checks rejected so many candidates that fewer than k pass.
+    """
+    k, criterion = asked
+    try:
+        return optimal_subset(J, k, criterion, ref.mean, progress, check)
+    except CandidatesExhaustedError:
+        raise _too_few(lazy.report(), k) from None
+
+
+def _random_indices(J: np.ndarray, ref: Reference, sizes: tuple, rng, check, progress) -> tuple:
+    """The indices of the random sets; ``sizes``: their size k and their number (checked)."""
+    k, random_sets = sizes
+    n_random = check_count(random_sets, "the number of random sets")
+    sets = steps(progress, range(n_random), "design: random sets", n_random)
+    return tuple(_indices_rows(J, rows, ref) for rows in _random_sets(len(J), k, rng, check, sets))
+
+
+def _timings(clock: list[float]) -> dict[str, float]:
+    """The time of each phase [ms], from the clock read at its start and at the end."""
+    stages = ("filters", "jacobian", "exchange", "random")
+    return {s: 1e3 * (b - a) for s, a, b in zip(stages, clock[:-1], clock[1:], strict=True)}
 
 
 def _checked_options(criterion: str, constraints, progress) -> Constraints:
@@ -516,71 +571,6 @@ def _design_reference(chain, marker, seed: int, candidates, constraints, reading
             f"the postures the limits keep: draw more candidates or relax the constraints"
         )
     return q_all[keep][rows]
-
-
-_LABELS = {
-    "cond": "cond (lower is better)",
-    "O1": "O1 (higher)",
-    "O3": "O3 (higher)",
-    "O4": "O4 (higher)",
-    "D": "D = log det M (higher)",
-    "A": "A = trace M^-1 (lower)",
-    "I": "I [per unit noise] (lower)",
-    "G": "G [per unit noise] (lower)",
-}
-
-
-def indices_table(columns: dict[str, list[float]]) -> str:
-    """A text table of indices: one row per index, one column per set."""
-    from ..identification.report import format_table
-
-    rows = [
-        [_LABELS[c], *(f"{v:.4g}" for v in values)]
-        for c, values in ((c, [col[i] for col in columns.values()]) for i, c in enumerate(CRITERIA))
-    ]
-    return format_table(["index", *columns], rows)
-
-
-def _values(ind: Indices) -> list[float]:
-    return [ind.value(c) for c in CRITERIA]
-
-
-def design_text(d: Design, noise_mm: float = 0.05) -> str:
-    """What ``calib design`` prints."""
-    rejected = ", ".join(f"{n} {name}" for name, n in d.filters.rejected if n)
-    if d.filters.checked is not None:
-        rejected = f"{rejected or 'none'} of the {d.filters.checked} checked for collisions"
-    lines = [
-        f"{d.robot}: {counted(len(d.q), 'configurations')} designed from {d.candidates} of "
-        f"{d.filters.candidates} candidates"
-        + (f" (rejected: {rejected})" if rejected else "")
-        + f", criterion {d.criterion}, {counted(d.model.rows, 'rows')} per configuration, "
-        f"{d.model.b} parameters",
-        *(f"note: {n}" for n in d.filters.notes),
-        f"greedy start then {counted(d.exchanges, 'exchanges')} in {counted(d.sweeps, 'sweeps')}; "
-        f"angles scaled by L = {d.model.length:.4g} m",
-        "",
-        indices_table(
-            {
-                "design": _values(d.indices),
-                "greedy": _values(d.greedy),
-                f"random (median of {len(d.random)})": [d.random_median(c) for c in CRITERIA],
-            }
-        ),
-        "",
-        f"predicted RMS {'gap' if d.contact is not None else 'position'} error after "
-        f"calibration at {noise_mm:g} mm noise: "
-        f"design {noise_mm * d.indices.value('I'):.4g} mm, random sets "
-        f"{noise_mm * d.random_median('I'):.4g} mm (median)",
-    ]
-    if d.contact is not None:
-        where = np.array2string(d.contact[:3, 3], precision=4, separator=", ")
-        lines.insert(
-            1,
-            f"every posture holds the contact, placed at {where} m in the base frame (the "
-            f"nominal contact frame at the first candidate; z its normal); rows: the gap",
-        )
-    return "\n".join(lines)
 
 
 __all__ = [

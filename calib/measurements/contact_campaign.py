@@ -42,7 +42,7 @@ from .csvfile import csv_records, parse_number, read_data_text
 from .data import JOINT_PREFIX, DataWarning
 from .joint_columns import column_keys
 from .limits import check_limits, joint_bounds, warn_default_ranges
-from .simulation import chain_argument
+from .simulation import chain_argument, perturbed
 
 ID_COLUMNS = {
     "plane": "plane",
@@ -472,19 +472,8 @@ def simulate_contacts(
     nominal = from_chain(chain)
     pset = parameter_set(nominal, params)
     warn_default_ranges(chain)
-    rotation = np.array([p.kind.is_rotation for p in pset.parameters])
-    scale = np.where(rotation, 1e-3 * error_mrad, 1e-3 * error_mm)
-    errors = scale * np.random.default_rng([seed, 1]).standard_normal(len(pset))
-    true_mdh = pset.apply(nominal, errors)
-    frames, ids, qs = {}, [], []
-    for j in range(int(contacts)):
-        count = int(configs) // int(contacts) + (1 if j < int(configs) % int(contacts) else 0)
-        object_ = None if given is None else list(given.items())[j]
-        name, frame, q = _touches(chain, true_mdh, kind, (j, count, seed), object_)
-        frames[name] = frame
-        qs.append(q)
-        ids += [name] * len(q)
-    q = np.concatenate(qs)
+    errors, true_mdh = perturbed(nominal, pset, (error_mm, error_mrad), seed)
+    frames, ids, q = _every_touch(chain, true_mdh, kind, (configs, contacts, seed), given)
     q = q + 1e-3 * noise_mrad * np.random.default_rng([seed, 2]).standard_normal(q.shape)
     q.setflags(write=False)
     data = ContactData(chain.joint_names, q, tuple(ids), kind, f"<simulated {chain.name}>")
@@ -502,6 +491,24 @@ def simulate_contacts(
         noise_mrad,
     )
     return ContactCampaign(data, truth)
+
+
+def _every_touch(chain: Chain, true_mdh: MDHModel, kind: Contact, draw: tuple, given):
+    """Every contact's frame by name, the contact of each touch and the touches ``(m, n)``.
+
+    ``draw``: ``(configs, contacts, seed)``, the touches shared between the contacts in turn;
+    ``given``: the objects by name, or None (drawn).
+    """
+    configs, contacts, seed = draw
+    frames, ids, qs = {}, [], []
+    for j in range(contacts):
+        count = configs // contacts + (1 if j < configs % contacts else 0)
+        object_ = None if given is None else list(given.items())[j]
+        name, frame, q = _touches(chain, true_mdh, kind, (j, count, seed), object_)
+        frames[name] = frame
+        qs.append(q)
+        ids += [name] * len(q)
+    return frames, ids, np.concatenate(qs)
 
 
 def _touches(chain: Chain, true_mdh: MDHModel, kind: Contact, draw: tuple, given=None):

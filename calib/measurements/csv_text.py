@@ -4,7 +4,9 @@ Measurements (:mod:`.csvfile`, which re-exports these names), touches, loops, pi
 detections and configurations are read as records (:func:`csv_records`: the first line of
 each, blank lines skipped, one separator: commas) of cells holding strict decimal numbers
 (:func:`parse_number`). Errors name the row the way a text editor or spreadsheet numbers it
-(the header is row 1) and the column by its name.
+(the header is row 1) and the column by its name. A file of named columns (pixels, targets)
+is read as a table (:func:`csv_table`: its header and rows checked; :func:`text_cell`: a cell
+holding a name).
 """
 
 from __future__ import annotations
@@ -12,10 +14,11 @@ from __future__ import annotations
 import csv
 import math
 import re
+from collections.abc import Sequence
 
 from ..exceptions import DataError
 
-__all__ = ["NUMBER", "csv_records", "is_nan_text", "parse_number"]
+__all__ = ["NUMBER", "csv_records", "csv_table", "is_nan_text", "parse_number", "text_cell"]
 
 
 NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
@@ -93,3 +96,40 @@ def _check_separator(cells: list[str], src: str, line: int) -> None:
     if all(NUMBER.fullmatch(c.strip()) for c in cells):
         why = "the header holds numbers: the columns' names come first (not as a # comment)"
         raise DataError(src, why, row=line)
+
+
+def csv_table(text: str, source: str, what: str, required: Sequence[str]):
+    """The header's names, the other records ``(line, cells)`` and the header's line; checked.
+
+    A table of ``what`` (its rows, for messages): distinct, non-empty header names, at least
+    one row, as many cells in every row as the header has. The ``required`` columns are
+    looked for before the rows' cells are counted: another file given (an intrinsics YAML
+    for the target) is named by its missing column.
+    """
+    records = list(csv_records(text, source))
+    if not records:
+        raise DataError(source, f"empty file: expected a header line and {what}")
+    line, cells = records[0]
+    names = [c.strip() for c in cells]
+    for j, name in enumerate(names):
+        if not name:
+            raise DataError(source, f"header cell {j + 1} is empty", row=line)
+        if names.index(name) != j:
+            raise DataError(source, "duplicate column", row=line, column=name)
+    for column in required:
+        if column not in names:
+            raise DataError(source, "missing column", row=line, column=column)
+    if len(records) == 1:
+        raise DataError(source, f"no {what} after the header")
+    for row, cells in records[1:]:
+        if len(cells) != len(names):
+            raise DataError(source, f"expected {len(names)} cells, found {len(cells)}", row=row)
+    return names, records[1:], line
+
+
+def text_cell(cells: list[str], j: int, source: str, line: int, column: str) -> str:
+    """A cell holding a name (a camera, a point, a link): not empty."""
+    value = cells[j].strip()
+    if not value:
+        raise DataError(source, "empty cell", row=line, column=column)
+    return value

@@ -38,7 +38,8 @@ from ..core.checks import check_size, real_array
 from ..core.fileio import csv_text, write_atomic
 from ..core.words import noun
 from ..exceptions import DataError, InvalidArgumentError, warn_user
-from .csvfile import csv_records, parse_number, read_data_text
+from .csv_text import csv_table, text_cell
+from .csvfile import parse_number, read_data_text
 from .data import JOINT_PREFIX, DataWarning
 from .intrinsics import Intrinsics
 from .joint_columns import column_keys
@@ -240,41 +241,6 @@ def _checked_text(text: object) -> str:
     return text
 
 
-def _table(text: str, source: str, what: str, required: Sequence[str]):
-    """The header's names, the other records ``(line, cells)`` and the header's line; checked.
-
-    The ``required`` columns are looked for before the rows' cells are counted: another
-    file given (an intrinsics YAML for the target) is named by its missing column.
-    """
-    records = list(csv_records(text, source))
-    if not records:
-        raise DataError(source, f"empty file: expected a header line and {what}")
-    line, cells = records[0]
-    names = [c.strip() for c in cells]
-    for j, name in enumerate(names):
-        if not name:
-            raise DataError(source, f"header cell {j + 1} is empty", row=line)
-        if names.index(name) != j:
-            raise DataError(source, "duplicate column", row=line, column=name)
-    for column in required:
-        if column not in names:
-            raise DataError(source, "missing column", row=line, column=column)
-    if len(records) == 1:
-        raise DataError(source, f"no {what} after the header")
-    for row, cells in records[1:]:
-        if len(cells) != len(names):
-            raise DataError(source, f"expected {len(names)} cells, found {len(cells)}", row=row)
-    return names, records[1:], line
-
-
-def _text_cell(cells: list[str], j: int, source: str, line: int, column: str) -> str:
-    """A cell holding a name (a camera, a point, a link): not empty."""
-    value = cells[j].strip()
-    if not value:
-        raise DataError(source, "empty cell", row=line, column=column)
-    return value
-
-
 def _warn_ignored(names: Sequence[str], source: str, what: str) -> None:
     """One note naming the columns a file has that are not read."""
     if names:
@@ -291,7 +257,7 @@ def parse_target(text: str, source: str = "<text>", path: str | None = None) -> 
             target in millimetres, naming the row.
     """
     text = _checked_text(text)
-    names, records, head = _table(text, source, "target points", ["point", *_TARGET_XYZ])
+    names, records, head = csv_table(text, source, "target points", ["point", *_TARGET_XYZ])
     check_size(len(records), MAX_TARGET_POINTS, "target points", source)
     wanted = ["point", *_TARGET_XYZ]
     has_normal = [c in names for c in _NORMAL]
@@ -308,7 +274,7 @@ def parse_target(text: str, source: str = "<text>", path: str | None = None) -> 
     seen: dict[str, int] = {}
     points, links, values, lines = [], [], [], []
     for line, cells in records:
-        point = _text_cell(cells, col["point"], source, line, "point")
+        point = text_cell(cells, col["point"], source, line, "point")
         if point in seen:
             raise DataError(
                 source, f"point '{point}' is given twice (rows {seen[point]} and {line})", row=line
@@ -316,7 +282,7 @@ def parse_target(text: str, source: str = "<text>", path: str | None = None) -> 
         seen[point] = line
         points.append(point)
         if has_link:
-            links.append(_text_cell(cells, col[_LINK], source, line, _LINK))
+            links.append(text_cell(cells, col[_LINK], source, line, _LINK))
         values.append([parse_number(cells[col[c]], source, line, c) for c in wanted[1:]])
         lines.append(line)
     table = np.array(values)
@@ -412,7 +378,7 @@ class _Known:
 
 def _ids(cells, col, cameras, target: _Known, source: str, line: int) -> tuple[str, str]:
     """The camera and the point of a row; DataError for an unknown one."""
-    camera = _text_cell(cells, col["camera"], source, line, "camera")
+    camera = text_cell(cells, col["camera"], source, line, "camera")
     if camera not in cameras:
         raise DataError(
             source,
@@ -420,7 +386,7 @@ def _ids(cells, col, cameras, target: _Known, source: str, line: int) -> tuple[s
             row=line,
             column="camera",
         )
-    point = _text_cell(cells, col["point"], source, line, "point")
+    point = text_cell(cells, col["point"], source, line, "point")
     if target.points is not None and point not in target.points:
         raise DataError(source, f"point '{point}' is not in the target {target.source}", row=line)
     return camera, point
@@ -451,7 +417,9 @@ def parse_observations(
         InvalidArgumentError: Arguments of the wrong kind.
     """
     joint_names = _checked_arguments(joints, cameras, target)
-    names, records, head = _table(_checked_text(text), source, "observations", OBSERVATION_COLUMNS)
+    names, records, head = csv_table(
+        _checked_text(text), source, "observations", OBSERVATION_COLUMNS
+    )
     check_size(len(records), MAX_OBSERVATIONS, "observations", source)
     col = _observation_columns(names, joint_names, source, head)
     numbers = [col[JOINT_PREFIX + j] for j in joint_names] + [col["u"], col["v"]]

@@ -28,7 +28,7 @@ from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import Identifiability, analyze_model
 from ..identification.jacobian import measured_point
 from ..identification.kinds import campaign_kind
-from ..identification.measures import MeasureKind
+from ..identification.measures import MeasureKind, Measurement
 from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
@@ -211,47 +211,17 @@ def simulate(
     m = 0 if given else check_count(configs, "the number of configurations")
     seed = check_count(seed, "the seed", 0)
     error_mm, error_mrad = length_mm(error_mm, "error_mm"), angle_mrad(error_mrad, "error_mrad")
-    noise_mm = length_mm(noise_mm, "noise_mm")
-    asked = None if noise_mrad is None else angle_mrad(noise_mrad, "noise_mrad")
-    noise_mrad = noise_mm if asked is None else asked
-    if asked and not measurement.is_pose:  # one given (noise_mm's too): as the command line's
-        raise InvalidArgumentError(
-            f"noise_mrad is the orientation noise of a pose: measure {measurement.label!r} "
-            "records no orientation"
-        )
+    noise_mm, noise_mrad = _checked_noise(noise_mm, noise_mrad, measurement)
     nominal = from_chain(chain)
     pset = parameter_set(nominal, params)
 
-    if not given:
-        warn_default_ranges(chain, "give your own configurations")
-    q = chain.check_configurations(configs) if given else chain.random_configurations(m, seed)
-    m = len(q)
-    if given:  # as a configurations file is read: far past a limit (degrees?) is an error
-        check_limits(chain, q, "the configurations", np.arange(1, m + 1), warn=False)
-    rng_errors = np.random.default_rng([seed, 1])
+    q = _configurations(chain, configs if given else m, seed)
+    errors, true_mdh = perturbed(nominal, pset, (error_mm, error_mrad), seed)
     rng_noise = np.random.default_rng([seed, 2])
-    rotation = np.array([p.kind.is_rotation for p in pset.parameters])
-    scale = np.where(rotation, 1e-3 * error_mrad, 1e-3 * error_mm)
-    errors = scale * rng_errors.standard_normal(len(pset))
-    true_mdh = pset.apply(nominal, errors)
-
-    kin = true_mdh.kinematics(q)
-    position = measured_point(kin, measurement.marker_array)
-    position = position + 1e-3 * noise_mm * rng_noise.standard_normal((m, 3))
-    quat = None
-    if measurement.is_pose:
-        noise = 1e-3 * noise_mrad * rng_noise.standard_normal((m, 3))
-        quat = matrix_to_quaternion(rotation_matrix(noise) @ kin.R[:, -1])
-    for other in markers[1:]:  # after marker 1's draws: one marker's campaign is unchanged
-        point = measured_point(kin, other.marker_array)
-        point = point + 1e-3 * noise_mm * rng_noise.standard_normal((m, 3))
-        position = np.hstack([position, point])
+    position, quat = _measured(true_mdh.kinematics(q), markers, (noise_mm, noise_mrad), rng_noise)
 
     analysis = analyze_model(nominal.idealized(), pset, measurement, q, robot=chain.name, seed=seed)
-    index = {n: i for i, n in enumerate(pset.names)}
-    kept = errors[[index[n] for n in analysis.base]]
-    others = errors[[index[n] for n in analysis.others]]
-    base_values = kept + analysis.B @ others if others.size else kept
+    base_values = _base_values(errors, pset, analysis)
 
     data = Measurements(
         chain.joint_names,
@@ -281,6 +251,79 @@ def simulate(
     return Campaign(data, truth)
 
 
+def _checked_noise(noise_mm, noise_mrad, measurement: Measurement) -> tuple[float, float]:
+    """The position and orientation noise [mm, mrad] (the latter: ``noise_mm``'s by default).
+
+    Raises:
+        InvalidArgumentError: A bad number, or an orientation noise given above 0 with a
+            measure that records no orientation.
+    """
+    noise_mm = length_mm(noise_mm, "noise_mm")
+    asked = None if noise_mrad is None else angle_mrad(noise_mrad, "noise_mrad")
+    if asked and not measurement.is_pose:  # one given (noise_mm's too): as the command line's
+        raise InvalidArgumentError(
+            f"noise_mrad is the orientation noise of a pose: measure {measurement.label!r} "
+            "records no orientation"
+        )
+    return noise_mm, noise_mm if asked is None else asked
+
+
+def _configurations(chain: Chain, configs: int | np.ndarray, seed: int) -> np.ndarray:
+    """The campaign's configurations: ``configs`` drawn (a count), or the given ones checked."""
+    if isinstance(configs, int):
+        warn_default_ranges(chain, "give your own configurations")
+        return chain.random_configurations(configs, seed)
+    q = chain.check_configurations(configs)
+    # as a configurations file is read: far past a limit (degrees?) is an error
+    check_limits(chain, q, "the configurations", np.arange(1, len(q) + 1), warn=False)
+    return q
+
+
+def perturbed(
+    nominal: MDHModel, pset: ParameterSet, error: tuple[float, float], seed: int
+) -> tuple[np.ndarray, MDHModel]:
+    """The true errors (stream ``[seed, 1]``) and the true model; ``error``: [mm, mrad].
+
+    Every parameter of ``pset`` is perturbed by a normal error of standard deviation
+    ``error_mm`` (a length) or ``error_mrad`` (an angle).
+    """
+    error_mm, error_mrad = error
+    rng_errors = np.random.default_rng([seed, 1])
+    rotation = np.array([p.kind.is_rotation for p in pset.parameters])
+    scale = np.where(rotation, 1e-3 * error_mrad, 1e-3 * error_mm)
+    errors = scale * rng_errors.standard_normal(len(pset))
+    return errors, pset.apply(nominal, errors)
+
+
+def _measured(kin, markers: list, noise: tuple, rng_noise: np.random.Generator):
+    """The measured points ``(m, 3 K)`` and, for a pose, quaternions ``(m, 4)`` (else None).
+
+    ``noise``: [mm, mrad]. Marker 1's position noise is drawn first, then the orientation
+    noise, then each other marker's: one marker's campaign is the same with or without others.
+    """
+    noise_mm, noise_mrad = noise
+    position = measured_point(kin, markers[0].marker_array)
+    m = len(position)
+    position = position + 1e-3 * noise_mm * rng_noise.standard_normal((m, 3))
+    quat = None
+    if markers[0].is_pose:
+        rotation_noise = 1e-3 * noise_mrad * rng_noise.standard_normal((m, 3))
+        quat = matrix_to_quaternion(rotation_matrix(rotation_noise) @ kin.R[:, -1])
+    for other in markers[1:]:  # after marker 1's draws: one marker's campaign is unchanged
+        point = measured_point(kin, other.marker_array)
+        point = point + 1e-3 * noise_mm * rng_noise.standard_normal((m, 3))
+        position = np.hstack([position, point])
+    return position, quat
+
+
+def _base_values(errors: np.ndarray, pset: ParameterSet, analysis: Identifiability) -> np.ndarray:
+    """True value of each base parameter, ``dX1 + B dX2``, in the order of ``analysis.base``."""
+    index = {n: i for i, n in enumerate(pset.names)}
+    kept = errors[[index[n] for n in analysis.base]]
+    others = errors[[index[n] for n in analysis.others]]
+    return kept + analysis.B @ others if others.size else kept
+
+
 TOUCHES = " (touches: calib.simulate_contacts)"
 """What :func:`simulate` says a contact's campaign is made by."""
 
@@ -297,4 +340,4 @@ def _several(marker) -> list:
     return [marker]
 
 
-__all__ = ["Campaign", "SimulationTruth", "chain_argument", "simulate"]
+__all__ = ["Campaign", "SimulationTruth", "chain_argument", "perturbed", "simulate"]
