@@ -687,6 +687,9 @@ def pooled_held_out(chain, data, folds, params="auto") -> float:
 def test_ur10_cross_validation_with_default_options():
     chain, data = ur10_poses()
     folds = np.array_split(np.arange(data.m), 5)  # 5 contiguous folds
+    # Issue 10's target ("Must show": pooled held-out RMS <= 4.03 mm), the registration-only
+    # figure its independent study measured, the best any method in it reached (FIGAROH's
+    # offsets 4.08, full 4.60). Not calib's output: calib gave 4.95 mm when it was filed.
     assert pooled_held_out(chain, data, folds) <= 4.03e-3
     assert pooled_held_out(chain, data.position_only(), folds) <= 4.03e-3
 

@@ -255,8 +255,13 @@ def test_elastic_delivery_reproduces_the_whole_model(tmp_path, capsys):
         assert np.max(np.abs(model.points(q)[:, 0] - expected)) < 1e-9
         target = model.deflected(q)
         assert np.max(np.abs(model.deflected(model.command(target)) - target)) < 1e-10
-        for bad in ("x", q[:, :3], np.full_like(q, np.nan)):
-            with pytest.raises(InvalidArgumentError):
+        refusals = (
+            ("x", "must be numbers, got 'x'"),
+            (q[:, :3], rf"must have shape \(m, {chain.n}\), got \({len(q)}, 3\)"),
+            (np.full_like(q, np.nan), "must be finite numbers, got NaN"),
+        )
+        for bad, reason in refusals:
+            with pytest.raises(InvalidArgumentError, match=reason):
                 model.points(bad)
     # calib predict writes the same points and deflected joints.
     configs, pred = tmp_path / "configs.csv", tmp_path / "pred.csv"
