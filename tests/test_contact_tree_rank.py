@@ -9,6 +9,7 @@ plane's pose and each contact frame's pose. Its numerical rank is what the touch
 
 from __future__ import annotations
 
+import functools
 import re
 import warnings
 from pathlib import Path
@@ -16,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 from contact_scorer import configurations, read_joints
+from pinfit import _foot, _line_twist
 
 import calib
 from calib.kinematics.catalog import resolve_urdf
@@ -68,8 +70,10 @@ def _terms(model):
     return terms
 
 
-def independent_rank() -> int:
-    """The rank of the gaps' central differences in every joint placement and object."""
+@functools.cache
+def _placement_jacobian() -> tuple[np.ndarray, list[int], tuple]:
+    """The gaps' central differences in every chain joint's placement error (6 each, in the
+    order of ``joints``), then each term's plane and contact (12 each); ``joints``; terms."""
     model = pin.buildModelFromUrdf(str(URDF))
     terms = _terms(model)
     joints = sorted({j for t in terms for j in t[4]})
@@ -88,8 +92,71 @@ def independent_rank() -> int:
 
     h = 1e-6
     J = np.array([(gaps(e) - gaps(-e)) / (2 * h) for e in h * np.eye(size)]).T
-    s = np.linalg.svd(J, compute_uv=False)
+    return J, joints, tuple((t[0], t[4]) for t in terms)
+
+
+def _rank(A: np.ndarray) -> int:
+    s = np.linalg.svd(A, compute_uv=False)
     return int(np.sum(s > 1e-6 * s[0]))
+
+
+def independent_rank() -> int:
+    """The rank of the gaps' central differences in every joint placement and object."""
+    return _rank(_placement_jacobian()[0])
+
+
+def _row_twists(model, base: str, joints) -> list[tuple[int, np.ndarray]]:
+    """A chain's MDH rows 2..n (Khalil, Hayati's beta where two axes are parallel; lines
+    and feet as tests/pinfit.py draws them, at the neutral posture) as twists of the joint
+    placement in the link each row deforms: ``(joint id, twist in its placement's frame)``.
+    Row 1 (the sole to the first joint) and the tool's row deform the plane's and the
+    contact's poses, free anyway."""
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, pin.neutral(model))
+    frame = model.frames[model.getFrameId(base)]
+    lines = [
+        (
+            data.oMf[model.getFrameId(base)].translation,
+            data.oMf[model.getFrameId(base)].rotation[:, 2],
+        )
+    ]
+    for j in joints:
+        S = np.ravel(data.joints[j].S)
+        axis = S[3:] if np.linalg.norm(S[3:]) > 0 else S[:3]
+        lines.append((data.oMi[j].translation, data.oMi[j].rotation @ axis))
+    feet, out = [lines[0][0]], []
+    below = [frame.parentJoint, *joints]
+    for k in range(1, len(joints) + 1):
+        (point, a), (p, u) = lines[k - 1], lines[k]
+        foot, n = _foot(a, point, u, p, feet[-1])
+        feet.append(foot)
+        parallel = np.linalg.norm(np.cross(a, u)) < 1e-9
+        kinds = ("beta", "alpha", "d", "theta") if parallel else ("alpha", "d", "theta", "r")
+        reverse = joints[k - 1] in model.supports[below[k - 1]]
+        carrier = joints[k - 2] if reverse else joints[k - 1]
+        if k == 1:
+            continue
+        for kind in kinds:
+            if kind in ("theta", "r"):
+                twist = _line_twist(p, u, kind == "theta")
+            else:
+                twist = _line_twist(foot, np.cross(a, n) if kind == "beta" else n, kind != "d")
+            out.append((carrier, data.oMi[carrier].actInv(pin.Motion(twist)).vector))
+    return out
+
+
+def independent_mdh_rank() -> int:
+    """The rank the touches give the chains' MDH rows beyond the planes' and contacts' poses:
+    each row's twist in the placement Jacobian's columns of its joint (first order)."""
+    J, joints, terms = _placement_jacobian()
+    model = pin.buildModelFromUrdf(str(URDF))
+    objects = J[:, 6 * len(joints) :]
+    columns = [
+        J[:, 6 * joints.index(j) : 6 * joints.index(j) + 6] @ twist
+        for base, ids in terms
+        for j, twist in _row_twists(model, base, ids)
+    ]
+    return _rank(np.column_stack([objects, *columns])) - _rank(objects)
 
 
 def _both_arms() -> tuple[calib.Term, ...]:
@@ -136,5 +203,8 @@ def test_auto_offers_each_chains_mdh_rows_not_the_components_where_chains_meet()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = calib.calibrate(calib.Problem(_both_arms()))
-    assert "the touches determine 96 of the 111 parameters offered" in result.notes
+    # 96: the touches' rank in the chains' MDH rows, by Pinocchio alone (independent_mdh_rank);
+    # 111 is the count of names calib offers (its MDH rows, the rows two chains share once).
+    determined = independent_mdh_rank()
+    assert f"the touches determine {determined} of the 111 parameters offered" in result.notes
     assert not any(n.endswith((":rx", ":ry")) for n in result.selection.kept)
