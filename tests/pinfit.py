@@ -13,6 +13,7 @@ so the held-out errors are the ones a correct calib fit of that level must give.
 from __future__ import annotations
 
 import csv
+import itertools
 
 import numpy as np
 import pinocchio as pin
@@ -132,11 +133,13 @@ class PinMdhFit(PinChainFit):
             axis = S[3:] if np.linalg.norm(S[3:]) > 0 else S[:3]
             lines.append((M.translation, M.rotation @ axis))
         feet, normals = [np.zeros(3)], []
-        for (point, a), (p, u) in zip(lines, lines[1:]):
+        for (point, a), (p, u) in itertools.pairwise(lines):
             foot, n = _foot(a, point, u, p, feet[-1])
             feet.append(foot)
             normals.append(n)
-        return [(*line, foot, n) for line, foot, n in zip(lines[1:], feet[1:], normals)]
+        return [
+            (*line, foot, n) for line, foot, n in zip(lines[1:], feet[1:], normals, strict=True)
+        ]
 
     def twists(self, names) -> list[tuple[int, np.ndarray]]:
         """Each name's joint index and unit twist ``(v, w)`` in the joint's frame."""

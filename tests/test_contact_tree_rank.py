@@ -114,12 +114,8 @@ def _row_twists(model, base: str, joints) -> list[tuple[int, np.ndarray]]:
     data = model.createData()
     pin.framesForwardKinematics(model, data, pin.neutral(model))
     frame = model.frames[model.getFrameId(base)]
-    lines = [
-        (
-            data.oMf[model.getFrameId(base)].translation,
-            data.oMf[model.getFrameId(base)].rotation[:, 2],
-        )
-    ]
+    sole = data.oMf[model.getFrameId(base)]
+    lines = [(sole.translation, sole.rotation[:, 2])]  # the sole's z
     for j in joints:
         S = np.ravel(data.joints[j].S)
         axis = S[3:] if np.linalg.norm(S[3:]) > 0 else S[:3]

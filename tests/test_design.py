@@ -187,7 +187,7 @@ def test_least_i_bounds_every_subset_and_is_tight():
     assert 0.85 * exact < bound <= exact * (1.0 + 1e-12)
     # the exchange finds the best subset here (never below the bound)
     assert i_of(optimal_subset(J, k, "I", L).design) == pytest.approx(exact, rel=1e-9)
-    with pytest.raises(InvalidArgumentError, match="number of configurations .* got 0"):
+    with pytest.raises(InvalidArgumentError, match=r"number of configurations .* got 0"):
         least_i(J, 0, L)
     with pytest.raises(InvalidArgumentError, match="must have shape"):
         least_i(J, k, L[:4, :4])
