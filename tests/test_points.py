@@ -57,7 +57,7 @@ def test_points_1_is_the_hand_cut_file(tmp_path, capsys):
     x1, y1, z1 by hand fit: 2.963 / 8.962 mm held out (the written URDF read by Pinocchio on
     the other session's rows) against the registration's 4.875 / 12.202. Both are independent
     fits (tests/pinfit.py): a base frame and a marker; and those with the MDH parameters auto
-    kept, under its prior (the chain pipeline, gone, gave the README's 2.983 / 9.291)."""
+    kept, under its prior (the chain pipeline, gone, gave 2.983 / 9.291)."""
     chosen = run_report(
         tmp_path, "chosen", ["--data", str(TRAIN), "--validate", str(TEST), "--points", "1"]
     )
