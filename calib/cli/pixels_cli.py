@@ -446,7 +446,8 @@ def _generic_count(views, target, args: argparse.Namespace) -> tuple[dict, tuple
     from ..calibration.pixel_chain import pixel_count
 
     chains, cameras = tuple(c for _, c in views), tuple(c for c, _ in views)
-    m, counts, settled, first = args.configs, [], False, 0
+    counts: list[dict] = []
+    m, settled, first = args.configs, False, 0
     for doubling in range(MAX_DOUBLINGS + 1):
         joints, q = _postures(chains, m, args.seed, warn=doubling == 0)
         try:
