@@ -283,7 +283,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print_json(
             {
                 "measure": args.measure,
-                "params": args.params,
+                "params": None if args.markers is not None else args.params,  # not used
                 "rows": [dataclasses.asdict(r) for r in rows],
             }
         )

@@ -345,11 +345,12 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
     )
 
 
-def _postures(chains, configs: int, seed: int, path: str | None = None):
+def _postures(chains, configs: int, seed: int, path: str | None = None, warn: bool = True):
     """Postures of every joint of the chains, random or read.
 
     Each chain's random draw (the first's wins), or each chain's columns of the
-    configurations file ``path`` (``calib design``'s, read once).
+    configurations file ``path`` (``calib design``'s, read once). ``warn``: about default
+    joint ranges of a random draw.
     """
     import numpy as np
 
@@ -357,7 +358,7 @@ def _postures(chains, configs: int, seed: int, path: str | None = None):
     from ..measurements.limits import warn_default_ranges
 
     joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
-    if path is None:
+    if path is None and warn:
         for chain in chains:
             warn_default_ranges(chain, "give your own configurations")
     drawn = (
@@ -422,16 +423,74 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def analyze_pixels_command(args: argparse.Namespace) -> int:
-    """``analyze --measure pixels``: the unknowns the cameras' pixels determine."""
+POSTURE_UNKNOWNS = 6
+"""The most one posture's pixels of a camera determine: the target's placement in the camera
+(2 per pixel below 3 pixels)."""
+
+COUNT_MARGIN = 2
+"""``analyze`` counts at postures whose pixels could determine this many times the unknowns."""
+
+MAX_DOUBLINGS = 5
+"""Times ``analyze`` doubles ``--configs`` for the count (at most 32 times ``--configs``)."""
+
+
+def _generic_count(views, target, args: argparse.Namespace) -> tuple[dict, tuple, list[str]]:
+    """The count at random postures enough of which see the target, its joints and a note.
+
+    From ``--configs`` postures, twice as many (the same seed: the first ones kept) until the
+    seeing postures could determine :data:`COUNT_MARGIN` times the unknowns
+    (:data:`POSTURE_UNKNOWNS` each, 2 per pixel) and the count no longer grows, at most
+    :data:`MAX_DOUBLINGS` times: a count on too few seeing postures is low. No point seen
+    at any of them: the error of the last draw.
+    """
     from ..calibration.pixel_chain import pixel_count
 
+    chains, cameras = tuple(c for _, c in views), tuple(c for c, _ in views)
+    counts: list[dict] = []
+    m, settled, first = args.configs, False, 0
+    for doubling in range(MAX_DOUBLINGS + 1):
+        joints, q = _postures(chains, m, args.seed, warn=doubling == 0)
+        try:
+            found = pixel_count(chains, cameras, target, joints, q, args.params)
+        except InvalidArgumentError:  # no point seen: more postures, else the error
+            if doubling == MAX_DOUBLINGS:
+                raise
+            m *= 2
+            continue
+        seeing = min(POSTURE_UNKNOWNS * found["postures"], 2 * found["rows"])
+        enough = seeing >= COUNT_MARGIN * found["n_unknowns"]
+        settled = enough and (not counts or found["n_base"] == counts[-1]["n_base"])
+        counts.append(found)
+        first = found["postures"] if doubling == 0 else first
+        if settled:
+            break
+        m *= 2
+    found["configs"] = len(q)
+    notes = []
+    if not settled:
+        wanted = -(-COUNT_MARGIN * found["n_unknowns"] // POSTURE_UNKNOWNS)
+        notes.append(
+            f"only {found['postures']} of {len(q)} random postures see the target: the count "
+            f"may be low (it wants about {wanted} seeing postures and a count that stops "
+            "growing); give more --configs, or a camera placement that sees the target more often"
+        )
+    elif len(counts) > 1:
+        notes.append(
+            f"{first} of the first {args.configs} random postures "
+            f"{'sees' if first == 1 else 'see'} the target: counted at {len(q)} "
+            f"({found['postures']} seeing), where the count stops growing"
+        )
+    found["notes"] = notes
+    return found, joints, notes
+
+
+def analyze_pixels_command(args: argparse.Namespace) -> int:
+    """``analyze --measure pixels``: the unknowns the cameras' pixels determine."""
     _refuse(args, NOT_PIXELS_ANALYZE)
     refuse_paper(args)
     views, target = _views(args, _cameras(args, several=True), placed=True)
     chains = tuple(c for _, c in views)
-    joints, q = _postures(chains, args.configs, args.seed)
-    found = pixel_count(chains, tuple(c for c, _ in views), target, joints, q, args.params)
+    found, joints, notes = _generic_count(views, target, args)
     cameras = tuple({c.name: c for c, _ in views}.values())
     if args.json:
         print_json(found)
@@ -447,4 +506,6 @@ def analyze_pixels_command(args: argparse.Namespace) -> int:
         + (", target mounting 6" if found["mount"] else "")
         + ")"
     )
+    for note in notes:
+        print(f"note: {note}")
     return 0

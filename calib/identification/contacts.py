@@ -109,7 +109,14 @@ class Contact:
     def theoretical_count(
         self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
     ) -> int | None:
-        """Closed-form identifiable count (every kind below defines it)."""
+        """Closed-form identifiable count, None where there is none (:meth:`theory`)."""
+        found = self.theory(sigma, on_axes, along)
+        return found if isinstance(found, int) else None
+
+    def theory(
+        self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
+    ) -> int | str:
+        """Closed-form identifiable count, or why there is none (every kind below defines it)."""
         raise NotImplementedError  # pragma: no cover
 
     def newton_system(
@@ -208,24 +215,31 @@ class PlaneContact(Contact):
         gap[:, 1:] *= s[:, None]
         return gap, J
 
-    def theoretical_count(self, sigma, on_axes, along=None) -> int | None:
+    def theory(self, sigma, on_axes, along=None) -> int | str:
         """4R + 2P - 1 with a prismatic joint, 4R - 2 without (see docs/method.md).
 
         2 fewer when the last joint is revolute about the contact's normal: its motion turns
         and slides the contact within the plane, which the plane cannot see. The contact
         origin on the last axis changes nothing.
 
-        None where calib has no proved formula: a prismatic joint first or last among the
+        Why not where calib has no proved formula: a prismatic joint first or last among the
         joints the plane sees, the contact origin on another joint axis, another axis along
         the normal, fewer than 4 joints that the plane sees, or ``along`` unknown.
         """
         revolute, prismatic, n = count_joints(sigma)
-        if along is None or any(k != n for k in (*on_axes, *along)):
-            return None
+        if along is None:
+            return "the joint axes along the normal unknown"
+        if any(k != n for k in on_axes):
+            return f"the contact origin on {_axes(on_axes)}: the formula covers the last only"
+        if any(k != n for k in along):
+            return f"{_axes(along)} along the normal: the formula covers the last only"
         blind = 1 if n in along else 0
         seen = sigma[: n - blind]  # the joints the plane sees
-        if len(seen) <= 3 or (prismatic and (seen[0] == 1 or seen[-1] == 1)):
-            return None
+        if len(seen) <= 3:
+            unseen = ", the last axis along the normal unseen" if blind else ""
+            return f"the plane sees {len(seen)} joints{unseen}: the formula needs 4"
+        if prismatic and (seen[0] == 1 or seen[-1] == 1):
+            return f"prismatic {'first' if seen[0] == 1 else 'last'} joint"
         return 4 * revolute + 2 * prismatic - (1 if prismatic else 2) - 2 * blind
 
 
@@ -268,20 +282,34 @@ class PlanePointContact(Contact):
         """The z row of the tip's displacement."""
         return W6[:, 2:3]
 
-    def theoretical_count(self, sigma, on_axes, along=None) -> int | None:
+    def theory(self, sigma, on_axes, along=None) -> int | str:
         """4R + 2P, 4R - 1 without a prismatic joint, 2 fewer with the tip on the last axis.
 
-        None with a prismatic first joint, the tip on another axis, fewer than 2 joints that
-        move the tip (the last one does not when the tip is on its axis), or a prismatic
-        one among 2 such joints.
+        Why not with a prismatic first joint, the tip on another axis, fewer than 2 joints
+        that move the tip (the last one does not when the tip is on its axis), or a
+        prismatic one among 2 such joints.
         """
         revolute, prismatic, n = count_joints(sigma)
         moving = n - (n in on_axes)
-        if moving <= 1 or any(k != n for k in on_axes) or sigma[0] == 1:
-            return None
+        if any(k != n for k in on_axes):
+            return f"the tip on {_axes(on_axes)}: the formula covers the last only"
+        if moving <= 1:
+            return f"{_moving(moving)} the tip: the formula needs 2"
+        if sigma[0] == 1:
+            return "prismatic first joint"
         if moving < n and moving <= 2 and prismatic:
-            return None  # R then P moving a tip on the last axis: no proved formula
+            return "a prismatic joint among the 2 that move the tip"  # no proved formula
         return 4 * revolute + 2 * prismatic - (0 if prismatic else 1) - (2 if on_axes else 0)
+
+
+def _axes(rows: tuple[int, ...]) -> str:
+    """``joint axis 3``, ``joint axes 1, 2``: joint rows, in words."""
+    return f"joint ax{'is' if len(rows) == 1 else 'es'} {', '.join(map(str, rows))}"
+
+
+def _moving(joints: int) -> str:
+    """``1 joint moves``, ``3 joints move``: the joints that move the tip, in words."""
+    return f"{joints} joint moves" if joints == 1 else f"{joints} joints move"
 
 
 @dataclass(frozen=True)
@@ -323,15 +351,19 @@ class FixedPointContact(Contact):
         """The position rows of the tip's displacement."""
         return W6[:, :3]
 
-    def theoretical_count(self, sigma, on_axes, along=None) -> int | None:
+    def theory(self, sigma, on_axes, along=None) -> int | str:
         """4R + 2P, 4R - 1 without a prismatic joint, 2 fewer with the tip on the last axis.
 
-        None with the tip on another axis, or 3 joints or fewer that move the tip (the last
-        one does not when the tip is on its axis): the tip cannot stay on the point and move.
+        Why not with the tip on another axis, or 3 joints or fewer that move the tip (the
+        last one does not when the tip is on its axis): the tip cannot stay on the point
+        and move.
         """
         revolute, prismatic, n = count_joints(sigma)
-        if n - (n in on_axes) <= 3 or any(k != n for k in on_axes):
-            return None
+        moving = n - (n in on_axes)
+        if any(k != n for k in on_axes):
+            return f"the tip on {_axes(on_axes)}: the formula covers the last only"
+        if moving <= 3:
+            return f"{_moving(moving)} the tip: it cannot stay on the point and move"
         return 4 * revolute + 2 * prismatic - (0 if prismatic else 1) - (2 if on_axes else 0)
 
 
@@ -375,14 +407,14 @@ class FixedPoseContact(Contact):
         inv = inverse_right_jacobian(-rotation_vector(R))  # Jl^-1(phi) = Jr^-1(-phi)
         return np.concatenate([W6[:, :3], inv @ W6[:, 3:]], axis=1)
 
-    def theoretical_count(self, sigma, on_axes, along=None) -> int | None:
+    def theory(self, sigma, on_axes, along=None) -> int | str:
         """4R + 2P (4R - 1 without a prismatic joint) where the loop can move (n >= 7).
 
-        None for a loop of 6 joints or fewer (it cannot move: finitely many postures).
+        Why not for a loop of 6 joints or fewer (it cannot move: finitely many postures).
         """
         revolute, prismatic, n = count_joints(sigma)
         if n < 7:
-            return None
+            return f"a {n}-joint loop cannot move"
         return 4 * revolute + 2 * prismatic - (0 if prismatic else 1)
 
 
@@ -405,9 +437,9 @@ class KnownPlaneContact(PlaneContact):
             "tool frame): the contact slides and turns on the plane",
         )
 
-    def theoretical_count(self, sigma, on_axes, along=None) -> int | None:
-        """None: calib has no proved formula with the plane given."""
-        return None
+    def theory(self, sigma, on_axes, along=None) -> int | str:
+        """Why not: calib has no proved formula with the plane given."""
+        return "no proved formula with the plane given"
 
 
 @dataclass(frozen=True)
@@ -421,9 +453,9 @@ class KnownPlanePointContact(PlanePointContact):
         """What these contacts can never identify."""
         return ("the tip's orientation: only the tip point is constrained",)
 
-    def theoretical_count(self, sigma, on_axes, along=None) -> int | None:
-        """None: calib has no proved formula with the plane given."""
-        return None
+    def theory(self, sigma, on_axes, along=None) -> int | str:
+        """Why not: calib has no proved formula with the plane given."""
+        return "no proved formula with the plane given"
 
 
 def known_plane(kind: Contact) -> Contact:

@@ -36,7 +36,7 @@ from .kinds import kind_of
 from .measures import MeasureKind, Measurement
 from .parameters import Kind, Parameter, ParameterSet, joint_of, parameter_set
 from .rank_notes import missing_errors, rank_notes
-from .theory import axes_through_point, per_tool_theory, theoretical_count
+from .theory import axes_through_point, per_tool_theory, theoretical_count, theory_note
 from .tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
 
 REGROUP_TOL = 1e-8
@@ -69,6 +69,7 @@ class Identifiability:
         B: Regrouping matrix: base value = kept + B @ others, shape (b, len(others)).
         n_complete: Rank of the complete reference error model.
         n_theory: 4R + 2P + 6 (pose) or + 3 (position), or None.
+        theory_note: Why ``n_theory`` is None, in a few words (empty where it is a count).
         on_axes: Revolute joints whose axis passes through the measured point.
         missing: One sentence per error direction the set cannot represent.
         warnings: Reasons not to trust the rank.
@@ -106,6 +107,7 @@ class Identifiability:
     timings_ms: dict[str, float] = field(default_factory=dict)
     per_tool: tuple[tuple[str, int | None], ...] = ()
     mimic: tuple[MimicJoint, ...] = ()
+    theory_note: str = ""
 
     def __repr__(self) -> str:
         """One line (the arrays are in the attributes, the full text in :meth:`summary`)."""
@@ -261,6 +263,7 @@ class Identifiability:
             "n_base": self.n_base,
             "n_complete": self.n_complete,
             "n_theory": self.n_theory,
+            "theory_note": self.theory_note,
             "per_tool_theory": {name: count for name, count in self.per_tool},
             "point_on_last_axis": self.on_last_axis,
             "point_on_axes": list(self.on_axes),
@@ -417,6 +420,7 @@ def analyze_model(
         B=B,
         n_complete=n_complete,
         n_theory=theoretical_count(mdh, measurement, on_axes),
+        theory_note=theory_note(mdh, measurement, on_axes),
         on_axes=on_axes,
         per_tool=per_tool_theory(mdh, measurement) if isinstance(mdh, TreeMDH) else (),
         missing=tuple(missing),
@@ -552,7 +556,10 @@ def _coupled(result: Identifiability, chain: Chain | Tree) -> Identifiability:
         pairs = zip(per_tool, chain.chains, strict=True)
         per_tool = tuple((t, None if c.coupling else n) for (t, n), c in pairs)
     mimic = () if chain.coupling is None else chain.coupling.mimic
-    return dataclasses.replace(result, n_theory=None, mimic=mimic, per_tool=per_tool)
+    note = "coupled (mimic) joints: the formula is for independent joints"
+    return dataclasses.replace(
+        result, n_theory=None, theory_note=note, mimic=mimic, per_tool=per_tool
+    )
 
 
 __all__ = [

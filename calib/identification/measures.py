@@ -85,6 +85,10 @@ class MeasureKind(Protocol):
         self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
     ) -> int | None: ...
 
+    def theory(  # noqa: D102
+        self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
+    ) -> int | str: ...
+
 
 @dataclass(frozen=True, eq=False)
 class Observed:
@@ -341,10 +345,17 @@ class Measurement:
     def theoretical_count(
         self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
     ) -> int | None:
+        """:meth:`theory`'s count, None where the formula says nothing."""
+        found = self.theory(sigma, on_axes, along)
+        return found if isinstance(found, int) else None
+
+    def theory(
+        self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
+    ) -> int | str:
         """4R + 2P + 6 for the pose, 4R + 2P + 3 for a point (2 fewer on the last axis).
 
-        None where the formula says nothing: other row subsets, or a point on a joint axis
-        other than the last (a wrist centre).
+        Why not where the formula says nothing: other row subsets, or a point on a joint
+        axis other than the last (a wrist centre).
 
         Args:
             sigma: The joints' types (0 revolute, 1 prismatic) in chain order ``(n,)``.
@@ -356,9 +367,9 @@ class Measurement:
             return 4 * revolute + 2 * prismatic + 6
         if self.is_position:
             if any(k != n for k in on_axes):
-                return None
+                return "the point on a joint axis other than the last"
             return 4 * revolute + 2 * prismatic + 3 - (2 if on_axes else 0)
-        return None
+        return f"the formula is for the pose or a point, not the rows {self.label}"
 
     def marker_count(self, sigma: np.ndarray, n_markers: int) -> int | None:
         """4R + 2P + 3K (+ 3 for a pose) for K markers at generic places, frame and markers free.

@@ -152,7 +152,7 @@ def analysis_text(res: Identifiability) -> str:
     lines += [
         "",
         f"standard {res.n_standard}, base {res.n_base}, complete model {res.n_complete}, "
-        f"theory {res.n_theory if res.n_theory is not None else 'n/a'}" + _axes_note(res),
+        f"theory {res.n_theory if res.n_theory is not None else 'n/a'}" + _theory_note(res),
         f"rank tolerance tau = {res.tolerance:.3g}; {gap}",
         *_tree_theory_lines(res),
     ]
@@ -235,6 +235,14 @@ def _mimic_lines(res: Identifiability) -> list[str]:
         with_ = f"no effect, as {offsets[k]}" if offsets[k] in res.zero else offsets[k]
         out.append(f"  offset{k} of {_mimic_expression(mj)}: with {with_}")
     return out
+
+
+def _theory_note(res: Identifiability) -> str:
+    """The points on axes, else why there is no theory (``n/a (prismatic first joint)``)."""
+    note = _axes_note(res)
+    if note or res.n_theory is not None or not res.theory_note:
+        return note
+    return f" ({res.theory_note})"
 
 
 def _axes_note(res: Identifiability) -> str:

@@ -22,6 +22,7 @@ __all__ = [
     "per_tool_theory",
     "point_on_last_axis",
     "theoretical_count",
+    "theory_note",
     "tree_axes",
     "tree_theoretical_count",
 ]
@@ -54,9 +55,35 @@ def theoretical_count(
     """
     if isinstance(chain_or_mdh, TreeMDH):
         return tree_theoretical_count(chain_or_mdh, measurement)
+    return measurement.theoretical_count(*_theory_arguments(chain_or_mdh, on_axes))
+
+
+def _theory_arguments(chain_or_mdh: Chain | MDHModel, on_axes: tuple[int, ...]) -> tuple:
+    """A kind's theory's arguments: the joints' types, the axes through the point, along z."""
     sigma = np.asarray(chain_or_mdh.sigma)
     along = axes_along_tool_z(chain_or_mdh) if isinstance(chain_or_mdh, MDHModel) else None
-    return measurement.theoretical_count(sigma[sigma >= 0], tuple(on_axes), along)
+    return sigma[sigma >= 0], tuple(on_axes), along
+
+
+def theory_note(
+    chain_or_mdh: Chain | MDHModel | TreeMDH,
+    measurement: MeasureKind,
+    on_axes: tuple[int, ...] = (),
+) -> str:
+    """Why :func:`theoretical_count` is None, in a few words (empty where it is a count).
+
+    The kind's own reason (:meth:`Measurement.theory`, the contacts' in
+    :mod:`calib.identification.contacts`). A tree: only rows that are neither the pose nor a
+    point (its points on axes are the report's own note).
+    """
+    if isinstance(chain_or_mdh, TreeMDH):
+        if isinstance(measurement, Measurement) and (
+            measurement.is_pose or measurement.is_position
+        ):
+            return ""
+        return f"the formula is for the pose or a point, not the rows {measurement.label}"
+    found = measurement.theory(*_theory_arguments(chain_or_mdh, on_axes))
+    return found if isinstance(found, str) else ""
 
 
 @functools.lru_cache(maxsize=16)

@@ -54,7 +54,8 @@ class SweepRow:
             ``error``.
         time_ms: Time to load and analyse the chain with both sets [ms].
         error: Why the chain could not be analysed, else None.
-        note: What else a reader should know (point on joint axes, rank warnings).
+        note: What else a reader should know (point on joint axes, why there is no theory,
+            rank warnings).
     """
 
     robot: str
@@ -114,6 +115,8 @@ def _sweep_one(
     notes = [f"point on axes {', '.join(map(str, on_axes))}"] if on_axes else []
     if full.mimic:  # the formula is for independent joints
         notes.append(f"{counted(len(full.mimic), 'coupled (mimic) joints')}: no theory")
+    elif full.n_theory is None and full.theory_note:
+        notes.append(f"no theory: {full.theory_note}")
     notes += list(dict.fromkeys(paper.warnings + full.warnings))
     return SweepRow(
         robot=str(robot),
