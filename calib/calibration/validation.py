@@ -17,7 +17,7 @@ from ..kinematics.robot import Chain
 from ..measurements.contact_campaign import ContactData
 from ..measurements.data import DataWarning, Measurements
 from ..measurements.pixels import PixelObservations
-from ..measurements.postures import POSTURE_TOL, posture_groups
+from ..measurements.postures import posture_groups
 from .diagnosis import suspect
 from .residuals import ResidualStats
 from .solve import FitState
@@ -188,8 +188,8 @@ def _warn_seen_postures(data, held) -> None:
     a, b = np.asarray(data.q, dtype=float), np.asarray(held.q, dtype=float)
     if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1] or not len(a) or not len(b):
         return
-    gap, _ = cKDTree(a).query(b, p=np.inf, distance_upper_bound=POSTURE_TOL)
-    seen = int(np.isfinite(gap).sum())
+    groups = posture_groups(np.vstack([a, b]))  # one posture as everywhere else in calib
+    seen = int(np.isin(groups[len(a) :], groups[: len(a)]).sum())
     if seen:
         warn_user(
             f"{held.source}: {seen} of the {len(b)} validation rows are at postures of the "
