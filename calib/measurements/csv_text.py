@@ -30,10 +30,10 @@ def parse_number(cell: str, src: str, line: int, column: str) -> float:
     text = cell.strip()
     if not text:
         raise DataError(src, "empty cell", row=line, column=column)
-    if is_nan_text(text):
-        why = f"{text!r}: a value not measured leaves the row out (start it with #)"
-        raise DataError(src, why, row=line, column=column)
     if not NUMBER.fullmatch(text):
+        if is_nan_text(text):
+            why = f"{text!r}: a value not measured leaves the row out (start it with #)"
+            raise DataError(src, why, row=line, column=column)
         raise DataError(src, f"not a number: {text!r}", row=line, column=column)
     value = float(text)
     if not math.isfinite(value):
