@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
@@ -33,9 +34,13 @@ from ..identification.parameters import ParameterSet, parameter_set
 from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import matrix_to_quaternion, rotation_matrix
-from ..kinematics.tree import load_robot
+from ..kinematics.tree import Tree, load_robot
+from ..kinematics.tree_model import TreeMDH
 from .data import Measurements
 from .limits import check_limits, warn_default_ranges
+
+_Model = TypeVar("_Model", MDHModel, TreeMDH)
+"""A chain's or a tree's model (:func:`perturbed` returns the kind it is given)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -215,7 +220,7 @@ def simulate(
     nominal = from_chain(chain)
     pset = parameter_set(nominal, params)
 
-    q = _configurations(chain, configs if given else m, seed)
+    q = campaign_configurations(chain, configs if given else m, seed)
     errors, true_mdh = perturbed(nominal, pset, (error_mm, error_mrad), seed)
     rng_noise = np.random.default_rng([seed, 2])
     position, quat = _measured(true_mdh.kinematics(q), markers, (noise_mm, noise_mrad), rng_noise)
@@ -268,8 +273,10 @@ def _checked_noise(noise_mm, noise_mrad, measurement: Measurement) -> tuple[floa
     return noise_mm, noise_mm if asked is None else asked
 
 
-def _configurations(chain: Chain, configs: int | np.ndarray, seed: int) -> np.ndarray:
-    """The campaign's configurations: ``configs`` drawn (a count), or the given ones checked."""
+def campaign_configurations(
+    chain: Chain | Tree, configs: int | np.ndarray, seed: int
+) -> np.ndarray:
+    """A campaign's configurations: ``configs`` drawn (a count), or the given ones checked."""
     if isinstance(configs, int):
         warn_default_ranges(chain, "give your own configurations")
         return chain.random_configurations(configs, seed)
@@ -280,8 +287,8 @@ def _configurations(chain: Chain, configs: int | np.ndarray, seed: int) -> np.nd
 
 
 def perturbed(
-    nominal: MDHModel, pset: ParameterSet, error: tuple[float, float], seed: int
-) -> tuple[np.ndarray, MDHModel]:
+    nominal: _Model, pset: ParameterSet, error: tuple[float, float], seed: int
+) -> tuple[np.ndarray, _Model]:
     """The true errors (stream ``[seed, 1]``) and the true model; ``error``: [mm, mrad].
 
     Every parameter of ``pset`` is perturbed by a normal error of standard deviation
@@ -340,4 +347,11 @@ def _several(marker) -> list:
     return [marker]
 
 
-__all__ = ["Campaign", "SimulationTruth", "chain_argument", "perturbed", "simulate"]
+__all__ = [
+    "Campaign",
+    "SimulationTruth",
+    "campaign_configurations",
+    "chain_argument",
+    "perturbed",
+    "simulate",
+]

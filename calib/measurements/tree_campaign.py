@@ -21,7 +21,7 @@ from ..identification.tree_jacobian import tree_parameters
 from ..kinematics.tree import Tree
 from ..kinematics.tree_model import TreeMDH, from_tree
 from .data import Measurements
-from .limits import check_limits, warn_default_ranges
+from .simulation import campaign_configurations, perturbed
 
 __all__ = ["TreeCampaign", "simulate_tree", "true_points"]
 
@@ -101,16 +101,9 @@ def simulate_tree(
     noise_mm = length_mm(noise_mm, "noise_mm")
     nominal = from_tree(tree)
     pset = tree_parameters(nominal, params)
-    if isinstance(configs, int | np.integer) and not isinstance(configs, bool):
-        warn_default_ranges(tree, "give your own configurations")
-        q = tree.random_configurations(int(configs), seed)
-    else:  # as a configurations file is read: far past a limit (degrees?) is an error
-        q = tree.check_configurations(configs)
-        check_limits(tree, q, "the configurations", np.arange(1, len(q) + 1), warn=False)
-    rotation = np.array([p.kind.is_rotation for p in pset.parameters])
-    scale = np.where(rotation, 1e-3 * error_mrad, 1e-3 * error_mm)
-    errors = scale * np.random.default_rng([seed, 1]).standard_normal(len(pset))
-    true_mdh = pset.apply(nominal, errors)
+    count = isinstance(configs, int | np.integer) and not isinstance(configs, bool)
+    q = campaign_configurations(tree, int(configs) if count else configs, seed)
+    errors, true_mdh = perturbed(nominal, pset, (error_mm, error_mrad), seed)
     points = true_points(true_mdh, q, mk).reshape(-1, 3)
     points = points + 1e-3 * noise_mm * np.random.default_rng([seed, 2]).standard_normal(
         points.shape
