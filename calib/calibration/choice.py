@@ -35,12 +35,14 @@ from .selection import Selection, select
 
 __all__ = [
     "SELECTION_BYTES",
+    "WEAKLY_SEEN",
     "chains_model",
     "check_selection_memory",
     "choose",
     "flush_data",
     "structural",
     "touching_postures",
+    "weakly_seen",
 ]
 
 
@@ -245,6 +247,33 @@ class AtStart:
         J = self.wide.jacobian(self.start, x, data, None, state, self.kinematics(data))
         self._last = (data, J)
         return J
+
+
+WEAKLY_SEEN = 0.05
+"""Share of a fitted direction's rows left once the objects' and frames' columns take theirs,
+under which :func:`weakly_seen` names it. Measurements: docs/developers/engine.md#weakly_seen"""
+
+
+def weakly_seen(model: ChainsModel, start: ChainsState, flush: ChainsData) -> dict[str, float]:
+    """The fitted directions the always-free columns nearly span, each with the share left.
+
+    The share: the norm of a direction's column at the registration (``flush`` rows) once
+    projected off the objects', contact frames' and instrument frames' columns, over its
+    norm. None for a fit by block (no dense Jacobian).
+    """
+    end = model.fixed + len(model.free)
+    if by_block(model, start) or end == model.fixed:
+        return {}
+    A = AtStart(model, start)(flush).reshape(-1, model.size())
+    U, s, _ = np.linalg.svd(A[:, : model.fixed], full_matrices=False)
+    U = U[:, s > s[0] * 1e-10] if s.size else U
+    names, out = model.names(), {}
+    for c in range(model.fixed, end):
+        column = A[:, c]
+        share = np.linalg.norm(column - U @ (U.T @ column)) / np.linalg.norm(column)
+        if share < WEAKLY_SEEN:
+            out[names[c]] = float(share)
+    return out
 
 
 def same_rows(a: ChainsData, b: ChainsData) -> bool:

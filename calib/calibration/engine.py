@@ -25,7 +25,7 @@ from . import contact_checks, contact_elastic, term_checks, validation
 from .chain_counts import Generic, assess
 from .chain_outliers import fit_terms_until_stable
 from .chain_registration import MeasuredState
-from .choice import chains_model, choose, flush_data, structural
+from .choice import WEAKLY_SEEN, chains_model, choose, flush_data, structural, weakly_seen
 from .contact_checks import contact_objects, few_postures, held_out_refusal
 from .contact_fit import block_fit, by_block
 from .contact_model import ContactState
@@ -215,11 +215,15 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
             f"data cannot separate {' and '.join(weak.names)} (condition {weak.condition:.3g} "
             f"of the fitted unknowns, over {ILL_CONDITION:g})"
         )
-    return _finished(r, result, converged, identifiable)
+    weak = weakly_seen(model, start, flush) if result.accepted else {}
+    return _finished(r, result, converged, identifiable, weak)
 
 
-def _finished(r: Registered, result, converged: list[bool], identifiable: int):
-    """The last fit's ``result`` with the run's level, counts and notes (stalled: checked)."""
+def _finished(r: Registered, result, converged: list[bool], identifiable: int, weak: dict):
+    """The last fit's ``result`` with the run's level, counts and notes (stalled: checked).
+
+    ``weak``: the fitted directions the data barely see (:func:`~.choice.weakly_seen`).
+    """
     opts = r.run.options
     if not converged[-1]:
         for part in result.chains:
@@ -231,7 +235,9 @@ def _finished(r: Registered, result, converged: list[bool], identifiable: int):
     few = [few_postures(h, "the held-out verdict rests on") for h in r.held if h is not None]
     far = turned_far(result) if result.accepted else None
     missed = _above_noise(result, opts.noise)
-    notes = (nothing_fitted(result, bool(opts.fix)), far, missed, nothing_held(result), *few)
+    unseen_moves = moved_unseen(result, weak)
+    notes = (nothing_fitted(result, bool(opts.fix)), far, unseen_moves, missed, nothing_held(result))
+    notes = (*notes, *few)
     added = [n for n in notes if n]
     return dataclasses.replace(result, notes=(*result.notes, *added)) if added else result
 
@@ -280,6 +286,33 @@ def turned_far(result: ContactChainsCalibration) -> str | None:
         f"{np.degrees(validation.ORIENTATION_REFUSED):.3g} deg): a joint zero that far off in "
         "the URDF, or a frame given on the wrong link (a joint in its chain that does not move "
         "it, or one left out)?"
+    )
+
+
+MOVED_SAID = (0.01, 0.01)
+"""A fitted change [m, rad] over which :func:`moved_unseen` says a weakly seen direction."""
+
+
+def moved_unseen(result: ContactChainsCalibration, weak: dict[str, float]) -> str | None:
+    """The note of fitted changes over :data:`MOVED_SAID` along directions the data barely see.
+
+    ``weak``: each such direction's share of its rows the data see (:func:`~.choice.weakly_seen`).
+    Rationale and measurements: docs/developers/engine.md#weakly_seen
+    """
+    said = [
+        f"{e['name']} by {e['value'] * 1000:.4g} +- {e['std'] * 1000:.3g} "
+        f"{'mm' if e['unit'] == 'm' else 'mrad'} (the fitted objects and frames take up "
+        f"{100 * (1 - weak[e['name']]):.3g} % of its effect on the rows)"
+        for e in result.entries()
+        if e["name"] in weak and abs(e["value"]) > MOVED_SAID[e["unit"] == "rad"]
+    ]
+    if not said:
+        return None
+    which = "that joint's" if len(said) == 1 else "those joints'"
+    return (
+        f"the fit moves {'; '.join(said)}: the data barely see it, so the written URDF "
+        f"moves {which} origin, and the fitted objects or frames with it, on little evidence; "
+        "check it against the robot's drawings, and compare params='offsets' on held-out rows"
     )
 
 

@@ -27,6 +27,7 @@ FLAGS = {
     "(term=)": "(--term-index)",
     "the number of folds must be": "--folds must be",
     "params='complete' fits": "--params complete fits",
+    "compare params='offsets'": "compare --params offsets",
     "did not see: folds)": "did not see: --folds K)",
     "folds hold every posture out in turn: not with holdout or validate (a term's too)": (
         "--folds holds every posture out in turn: not with --holdout, --validate or a term's "
