@@ -227,5 +227,8 @@ def test_calibrate_dispatches_contact_data():
     assert {n.split(":")[1][:5] for n in a.free} == {"theta"}  # as paper names them
     held, other = part.stats["held_out"], b.stats["held_out"]
     assert held.m == other.m and np.allclose(held.rms, other.rms, rtol=1e-6, atol=1e-9)
-    with pytest.raises(InvalidArgumentError, match="fix is for one chain measured"):
-        calibrate(chain, data, fix=("theta1",))
+    fixed = calibrate(chain, data, marker=guess, params="offsets", holdout=0.25, fix=("theta2",))
+    assert "panda_joint2:theta2" in a.free and "panda_joint2:theta2" not in fixed.free
+    assert set(fixed.free) == set(a.free) - {"panda_joint2:theta2"}
+    with pytest.raises(InvalidArgumentError, match="touches have no instrument frame"):
+        calibrate(chain, data, fix=("frame",))

@@ -309,12 +309,13 @@ def test_the_command_lines_refusals_are_one_line(extra, said, tmp_path, capsys):
     assert not (tmp_path / "o.urdf").exists()
 
 
-ONE_CHAIN = [["--fix", "d1"], ["--free", "d1"], ["--loss", "huber"], ["--noise-mm", "0.1"]]
+ONE_CHAIN = [["--loss", "huber"], ["--noise-mm", "0.1"]]
 
 
 @pytest.mark.parametrize("extra", ONE_CHAIN, ids=[e[0] for e in ONE_CHAIN])
 def test_one_chain_touching_takes_none_of_them_either(extra, tmp_path, capsys):
-    """As contacts.md says: options of one chain measured by an instrument, for touches too."""
+    """As contacts.md says: options of one chain measured by an instrument, for touches too
+    (``--fix`` and ``--free`` name one chain touching's parameters: tests/test_weakly_seen.py)."""
     chain = load_robot(URDF, *FEET[0])
     write_contacts(tmp_path / "D.csv", simulate_contacts(chain, 20, "plane-point", seed=1).data)
     argv = ["calibrate", URDF, "--base", FEET[0][0], "--tool", FEET[0][1], "--measure"]

@@ -32,7 +32,9 @@ def _origin(urdf: Path, joint: str) -> np.ndarray:
     """A joint's origin xyz [m] as the URDF file writes it."""
     (node,) = [j for j in ET.parse(urdf).getroot().findall("joint") if j.get("name") == joint]
     origin = node.find("origin")
-    return np.array([float(v) for v in (origin.get("xyz") if origin is not None else "0 0 0").split()])
+    return np.array(
+        [float(v) for v in (origin.get("xyz") if origin is not None else "0 0 0").split()]
+    )
 
 
 def _left_after_a_table(urdf: str, report: dict, joint: str, axis: int) -> float:
@@ -42,7 +44,8 @@ def _left_after_a_table(urdf: str, report: dict, joint: str, axis: int) -> float
     model = pin.buildModelFromUrdf(urdf)
     plane = np.array(report["objects"]["planes"]["table"]["matrix"])
     contact = np.array(report["frames"]["contacts"][RIGHT[2]]["matrix"])
-    rows = list(csv.DictReader(open(REAL / "right_train.csv")))
+    with open(REAL / "right_train.csv") as file:
+        rows = list(csv.DictReader(file))
 
     def touches(m: pin.Model) -> np.ndarray:
         data, out = m.createData(), []
@@ -53,7 +56,9 @@ def _left_after_a_table(urdf: str, report: dict, joint: str, axis: int) -> float
                     q[m.joints[m.getJointId(name)].idx_q] = float(value)
             pin.framesForwardKinematics(m, data, q)
             base, tool = data.oMf[m.getFrameId(RIGHT[1])], data.oMf[m.getFrameId(RIGHT[2])]
-            out.append((np.linalg.inv(plane) @ (base.inverse() * tool).homogeneous @ contact)[:3, 3])
+            out.append(
+                (np.linalg.inv(plane) @ (base.inverse() * tool).homogeneous @ contact)[:3, 3]
+            )
         return np.array(out)
 
     before, moved, step = touches(model), model.copy(), 1e-4
@@ -103,34 +108,52 @@ def test_a_direction_the_touches_see_is_not_said(right):
 
 def test_a_measured_chain_without_such_a_move_has_no_note():
     chain = calib.load_chain("ur5")
-    campaign = calib.simulate(chain, 60, "position", marker=(0.01, 0.02, 0.05), noise_mm=0.05, seed=1)
+    campaign = calib.simulate(
+        chain, 60, "position", marker=(0.01, 0.02, 0.05), noise_mm=0.05, seed=1
+    )
     result = calib.calibrate(chain, campaign.measurements, holdout=0.3)
     assert result.accepted
     assert not any(n.startswith(SAID) for n in result.notes)
 
 
 def test_the_command_says_the_flag(tmp_path, capsys):
-    code = main(
-        [
-            "calibrate",
-            RIGHT[0],
-            "--base",
-            RIGHT[1],
-            "--tool",
-            RIGHT[2],
-            "--data",
-            str(REAL / "right_train.csv"),
-            "--measure",
-            "plane",
-            "--contact",
-            "0",
-            "0",
-            "-0.12",
-            "--out",
-            str(tmp_path / "cal.urdf"),
-        ]
-    )
-    assert code == 0
+    assert main(_calibrate(tmp_path)) == 0
     out = capsys.readouterr().out
     assert "note: the fit moves leg_left_6_joint:d2 by 212.6" in out
     assert "compare --params offsets on held-out rows" in out
+
+
+def _calibrate(tmp_path, *extra: str) -> list[str]:
+    """``calib calibrate`` of the right arm's touches from the left sole; argv."""
+    return [
+        "calibrate",
+        RIGHT[0],
+        "--base",
+        RIGHT[1],
+        "--tool",
+        RIGHT[2],
+        "--data",
+        str(REAL / "right_train.csv"),
+        "--measure",
+        "plane",
+        "--contact",
+        "0",
+        "0",
+        "-0.12",
+        *extra,
+        "--out",
+        str(tmp_path / "cal.urdf"),
+    ]
+
+
+def test_fix_holds_that_joint_at_the_nominal_for_touches(tmp_path, capsys, right):
+    """``--fix`` for one chain touching: the written origin is the nominal URDF's (XML)."""
+    nominal = right[2]
+    assert main(_calibrate(tmp_path, "--fix", "leg_left_6_joint:d2")) == 0
+    out = capsys.readouterr().out
+    assert "leg_left_6_joint:d2" not in out and SAID not in out
+    written = _origin(tmp_path / "cal.urdf", "leg_left_6_joint")
+    assert np.allclose(written, _origin(nominal, "leg_left_6_joint"), atol=1e-9)
+    assert main(_calibrate(tmp_path, "--fix", "frame")) == 2
+    (err,) = [x for x in capsys.readouterr().err.splitlines() if "warning" not in x]
+    assert "touches have no instrument frame or markers" in err

@@ -35,7 +35,6 @@ from .selection import Selection, select
 
 __all__ = [
     "SELECTION_BYTES",
-    "WEAKLY_SEEN",
     "chains_model",
     "check_selection_memory",
     "choose",

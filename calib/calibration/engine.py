@@ -25,7 +25,7 @@ from . import contact_checks, contact_elastic, term_checks, validation
 from .chain_counts import Generic, assess
 from .chain_outliers import fit_terms_until_stable
 from .chain_registration import MeasuredState
-from .choice import WEAKLY_SEEN, chains_model, choose, flush_data, structural, weakly_seen
+from .choice import chains_model, choose, flush_data, structural, weakly_seen
 from .contact_checks import contact_objects, few_postures, held_out_refusal
 from .contact_fit import block_fit, by_block
 from .contact_model import ContactState
@@ -84,6 +84,8 @@ def calibrate_contact_chains(
     support: Support | None = None,
     marker=None,
     known_planes=None,
+    fix: tuple[str, ...] = (),
+    free: tuple[str, ...] = (),
 ) -> ContactChainsCalibration:
     """Calibrate several chains of one robot together: a problem's terms, as arguments.
 
@@ -97,7 +99,9 @@ def calibrate_contact_chains(
     the load split with a second foot (:class:`~calib.kinematics.standing.Support`);
     ``marker``: a guess of each measured term's markers in its tool frame [m] (one point or
     one per marker; default: zeros); ``known_planes``: planes held, not fitted
-    (:class:`~.problem.Problem`'s); ``progress``: progress bars (:mod:`calib.core.progress`).
+    (:class:`~.problem.Problem`'s); ``fix``, ``free``: one chain's parameters held at the
+    nominal or always fitted (:class:`~.options.Options`'); ``progress``: progress bars
+    (:mod:`calib.core.progress`).
 
     Returns:
         The result: check ``accepted``; ``write_urdf`` writes one URDF of the robot.
@@ -112,8 +116,12 @@ def calibrate_contact_chains(
         held = validate if isinstance(validate, Sequence) else [None] * len(data)
         for c, d, v in zip(chains, data, held, strict=False):
             check_readings(c, d, v)
+    if (fix or free) and len(chains) != 1:
+        raise InvalidArgumentError("fix and free name one chain's parameters: give one chain")
     options = Options(
         params=params,
+        fix=fix,
+        free=free,
         orientation_weight=orientation_weight,
         elastic=elastic,
         max_iterations=max_iterations,
@@ -236,7 +244,13 @@ def _finished(r: Registered, result, converged: list[bool], identifiable: int, w
     far = turned_far(result) if result.accepted else None
     missed = _above_noise(result, opts.noise)
     unseen_moves = moved_unseen(result, weak)
-    notes = (nothing_fitted(result, bool(opts.fix)), far, unseen_moves, missed, nothing_held(result))
+    notes = (
+        nothing_fitted(result, bool(opts.fix)),
+        far,
+        unseen_moves,
+        missed,
+        nothing_held(result),
+    )
     notes = (*notes, *few)
     added = [n for n in notes if n]
     return dataclasses.replace(result, notes=(*result.notes, *added)) if added else result

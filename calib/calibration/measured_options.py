@@ -13,6 +13,7 @@ from ..core.words import counted
 from ..exceptions import InvalidArgumentError
 from ..identification.identifiability import independent_columns
 from ..kinematics.robot import Chain
+from .contact_model import ContactState
 from .model import compliance_name
 from .options import Options
 from .placements import component_of, mdh_directions
@@ -146,12 +147,20 @@ def level_offer(chain: Chain, start, instrument: bool, opts: Options):
     Names: docs/developers/engine.md#level_offer
 
     Raises:
-        InvalidArgumentError: An unknown name, or ``fix`` of a group.
+        InvalidArgumentError: An unknown name, or ``fix`` of a group (touches: ``free`` too).
     """
     tree = instrument and len(start.chains) > 1  # one chain: its MDH directions (``auto``'s)
     offer = "components" if tree and opts.level == "complete" else opts.level
     if not (opts.fix or opts.free):
         return None, offer
+    touching = isinstance(start.states[0], ContactState)
+    if touching and (
+        named := [(w, n) for w in ("fix", "free") for n in getattr(opts, w) if n in GROUPS]
+    ):
+        raise InvalidArgumentError(
+            f"{' '.join(named[0])}: touches have no instrument frame or markers (the objects and "
+            "the contact frame are always fitted); name joint parameters or compliances"
+        )
     if held := [n for n in opts.fix if n in GROUPS]:
         raise InvalidArgumentError(
             f"fix {held[0]}: the joint engine fits the instrument's frame and markers (and the "

@@ -71,8 +71,8 @@ SHAPE_LABELS = {
 the messages."""
 
 APPLIES: dict[str, tuple[str, ...]] = {
-    "fix": ("chain",),
-    "free": ("chain",),
+    "fix": ("chain", "contacts"),
+    "free": ("chain", "contacts"),
     "loss": ("chain",),
     "noise_mm": ("chain",),
     "elastic": ("chain", "contacts"),

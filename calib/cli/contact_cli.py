@@ -179,6 +179,8 @@ def _engine(args: argparse.Namespace, chain: Chain, data, check, weight, support
             elastic=args.elastic,
             support=support,
             known_planes=named_planes(args.known_planes, "--known-plane"),
+            fix=tuple(args.fix),
+            free=tuple(args.free),
         )
 
     return cross_validated(args, fit, [data], None if check is None else [check])
