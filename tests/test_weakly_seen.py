@@ -154,6 +154,12 @@ def test_fix_holds_that_joint_at_the_nominal_for_touches(tmp_path, capsys, right
     assert "leg_left_6_joint:d2" not in out and SAID not in out
     written = _origin(tmp_path / "cal.urdf", "leg_left_6_joint")
     assert np.allclose(written, _origin(nominal, "leg_left_6_joint"), atol=1e-9)
-    assert main(_calibrate(tmp_path, "--fix", "frame")) == 2
-    (err,) = [x for x in capsys.readouterr().err.splitlines() if "warning" not in x]
-    assert "touches have no instrument frame or markers" in err
+    refused = {
+        ("--fix", "frame"): "touches have no instrument frame or markers",
+        ("--free", "markers"): "touches have no instrument frame or markers",
+        ("--elastic", "--fix", "c1"): "with touches, fix and free name joint parameters",
+    }
+    for extra, said in refused.items():
+        assert main(_calibrate(tmp_path, *extra)) == 2
+        (err,) = [x for x in capsys.readouterr().err.splitlines() if "warning" not in x]
+        assert said in err

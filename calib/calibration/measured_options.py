@@ -154,12 +154,16 @@ def level_offer(chain: Chain, start, instrument: bool, opts: Options):
     if not (opts.fix or opts.free):
         return None, offer
     touching = isinstance(start.states[0], ContactState)
-    if touching and (
-        named := [(w, n) for w in ("fix", "free") for n in getattr(opts, w) if n in GROUPS]
-    ):
+    named = [(w, n) for w in ("fix", "free") for n in getattr(opts, w) if touching]
+    if group := [p for p in named if p[1] in GROUPS]:
         raise InvalidArgumentError(
-            f"{' '.join(named[0])}: touches have no instrument frame or markers (the objects and "
-            "the contact frame are always fitted); name joint parameters or compliances"
+            f"{' '.join(group[0])}: touches have no instrument frame or markers (the objects and "
+            "the contact frame are always fitted); name joint parameters"
+        )
+    if spring := [p for p in named if _compliance(p[1])]:
+        raise InvalidArgumentError(
+            f"{' '.join(spring[0])}: with touches, fix and free name joint parameters; elastic "
+            "fits every joint's compliance it offers"
         )
     if held := [n for n in opts.fix if n in GROUPS]:
         raise InvalidArgumentError(
