@@ -223,14 +223,14 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
             f"data cannot separate {' and '.join(weak.names)} (condition {weak.condition:.3g} "
             f"of the fitted unknowns, over {ILL_CONDITION:g})"
         )
-    weak = weakly_seen(model, start, flush) if result.accepted else {}
-    return _finished(r, result, converged, identifiable, weak)
+    barely = weakly_seen(model, start, flush) if result.accepted else {}
+    return _finished(r, result, converged, identifiable, barely)
 
 
-def _finished(r: Registered, result, converged: list[bool], identifiable: int, weak: dict):
+def _finished(r: Registered, result, converged: list[bool], identifiable: int, barely: dict):
     """The last fit's ``result`` with the run's level, counts and notes (stalled: checked).
 
-    ``weak``: the fitted directions the data barely see (:func:`~.choice.weakly_seen`).
+    ``barely``: the fitted directions the data barely see (:func:`~.choice.weakly_seen`).
     """
     opts = r.run.options
     if not converged[-1]:
@@ -243,16 +243,15 @@ def _finished(r: Registered, result, converged: list[bool], identifiable: int, w
     few = [few_postures(h, "the held-out verdict rests on") for h in r.held if h is not None]
     far = turned_far(result) if result.accepted else None
     missed = _above_noise(result, opts.noise)
-    unseen_moves = moved_unseen(result, weak)
-    notes = (
+    unseen_moves = moved_unseen(result, barely)
+    notes = [
         nothing_fitted(result, bool(opts.fix)),
         far,
         unseen_moves,
         missed,
         nothing_held(result),
-    )
-    notes = (*notes, *few)
-    added = [n for n in notes if n]
+    ]
+    added = [n for n in (*notes, *few) if n]
     return dataclasses.replace(result, notes=(*result.notes, *added)) if added else result
 
 
