@@ -125,25 +125,9 @@ def test_the_command_says_the_flag(tmp_path, capsys):
 
 def _calibrate(tmp_path, *extra: str) -> list[str]:
     """``calib calibrate`` of the right arm's touches from the left sole; argv."""
-    return [
-        "calibrate",
-        RIGHT[0],
-        "--base",
-        RIGHT[1],
-        "--tool",
-        RIGHT[2],
-        "--data",
-        str(REAL / "right_train.csv"),
-        "--measure",
-        "plane",
-        "--contact",
-        "0",
-        "0",
-        "-0.12",
-        *extra,
-        "--out",
-        str(tmp_path / "cal.urdf"),
-    ]
+    chain = f"{RIGHT[0]} --base {RIGHT[1]} --tool {RIGHT[2]}".split()
+    touches = f"--data {REAL / 'right_train.csv'} --measure plane --contact 0 0 -0.12".split()
+    return ["calibrate", *chain, *touches, *extra, "--out", str(tmp_path / "cal.urdf")]
 
 
 def test_fix_holds_that_joint_at_the_nominal_for_touches(tmp_path, capsys, right):
