@@ -321,11 +321,11 @@ def moved_unseen(result: ContactChainsCalibration, weak: dict[str, float]) -> st
     ]
     if not said:
         return None
-    which = "that joint's origin" if len(said) == 1 else "those joints' origins"
+    it, which = ("it", "that joint's origin") if len(said) == 1 else ("them", "those origins")
     return (
-        f"the fit moves {'; '.join(said)}: the data barely see it, so the written URDF "
+        f"the fit moves {'; '.join(said)}: the data barely see {it}, so the written URDF "
         f"moves {which}, and the fitted objects or frames with it, on little evidence; check "
-        "it against the robot's drawings, and compare params='offsets' on held-out rows"
+        f"{it} against the robot's drawings, and compare params='offsets' on held-out rows"
     )
 
 
