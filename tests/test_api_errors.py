@@ -205,6 +205,8 @@ def _third_round_cases():
         "simulate chain=str": lambda: calib.simulate("no_such_robot", 5),
         "simulate configs=str": lambda: calib.simulate(CHAIN, "abc"),
         "simulate seed=-1": lambda: calib.simulate(CHAIN, 5, seed=-1),
+        "simulate robot_seed=-1": lambda: calib.simulate(CHAIN, 5, robot_seed=-1),
+        "simulate robot_seed=1.5": lambda: calib.simulate(CHAIN, 5, robot_seed=1.5),
         "simulate error_mm=1e300": lambda: calib.simulate(CHAIN, 5, error_mm=1e300),
         "simulate noise_mm=nan": lambda: calib.simulate(CHAIN, 5, noise_mm=np.float64("nan")),
         "read_measurements chain=str": lambda: calib.read_measurements(data_csv, "ur5"),
@@ -229,6 +231,8 @@ def _third_round_cases():
             TREE, None, max_iterations=3_000_000_000
         ),
         "simulate_tree error_mm=1e300": lambda: simulate_tree(TREE, 5, error_mm=1e300),
+        "simulate_tree robot_seed=-1": lambda: simulate_tree(TREE, 5, robot_seed=-1),
+        "simulate_tree seed=-1 configs=array": lambda: simulate_tree(TREE, TREE_Q, seed=-1),
         "calibrate_contact_chains pose_weight=nan": lambda: calibrate_contact_chains(
             [CHAIN], [touches], pose_weight=float("nan")
         ),
@@ -271,6 +275,9 @@ def _third_round_cases():
         ),
         "contact_campaign.read_contacts path=None": lambda: read_contacts(None, CHAIN, "plane"),
         "contact_campaign.simulate_contacts chain=int": lambda: simulate_contacts(5, 30),
+        "contact_campaign.simulate_contacts robot_seed=True": lambda: simulate_contacts(
+            CHAIN, 3, robot_seed=True
+        ),
         "contact_campaign.simulate_contacts contacts>configs": lambda: simulate_contacts(
             CHAIN, 3, contacts=10
         ),

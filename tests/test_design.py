@@ -407,6 +407,27 @@ def test_cli_evaluate_predicts_the_error_at_the_instruments_noise(tmp_path, caps
     )
 
 
+def test_the_noise_of_a_design_is_its_summarys_as_the_command_lines(tmp_path, capsys):
+    """``calib design --noise-mm`` scales the printed prediction alone (the configurations do
+    not depend on it); in Python the same number is ``summary(noise_mm=)``: the same line,
+    noise x I."""
+    argv = ["design", "ur5", "--configs", "10", "--candidates", "300", "--no-collision"]
+    printed, written = {}, {}
+    for noise in ("0.03", "0.1"):
+        out = tmp_path / f"plan{noise}.csv"
+        assert main([*argv, "--noise-mm", noise, "--out", str(out)]) == 0
+        printed[noise] = capsys.readouterr().out.splitlines()
+        written[noise] = out.read_text()
+    assert written["0.03"] == written["0.1"]
+    constraints = Constraints(collision=False)
+    plan = design("ur5", 10, candidates=300, constraints=constraints)
+    for noise in ("0.03", "0.1"):
+        summary = plan.summary(noise_mm=float(noise)).splitlines()
+        assert summary == printed[noise][: len(summary)]
+        figure = float(summary[-1].split(": design ")[1].split()[0])
+        assert figure == pytest.approx(float(noise) * plan.indices.i, rel=1e-3)
+
+
 def test_cli_design_errors_leave_no_output(tmp_path, capsys):
     out = tmp_path / "configs.csv"
     assert main(["design", "ur5", "--configs", "3", "--out", str(out)]) == 2

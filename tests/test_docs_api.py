@@ -88,7 +88,7 @@ def test_a_function_renders_its_signature_parameters_and_units(built):
     assert signature.endswith(
         "calib.simulate(chain,configs=100,measure=DEFAULT_MEASURE,"
         "marker=None,error_mm=1.0,error_mrad=1.0,noise_mm=0.0,"
-        "noise_mrad=None,seed=0,params=DEFAULT_SET)"
+        "noise_mrad=None,seed=0,params=DEFAULT_SET,*,robot_seed=None)"
     ), text
     for field in ("Parameters:", "Returns:", "Raises:"):
         assert field in text, field

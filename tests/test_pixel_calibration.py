@@ -141,6 +141,7 @@ def test_half_a_pixel_of_noise_held_out_position_at_the_target(case, capsys, tmp
         print(f"  on the nominal robot: {rms0:.3f} mm)")
     assert np.sqrt(np.mean(err**2)) < 0.5 * np.sqrt(np.mean(err0**2))
     assert not any("reprojection error is" in n for n in result.notes)  # 0.5 px: no warning
+    assert not any("fitting its intrinsics" in n for n in result.notes)  # the right ones
 
 
 def test_refine_targets_recovers_the_points_after_the_first_three(tmp_path):

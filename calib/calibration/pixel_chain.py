@@ -36,6 +36,7 @@ __all__ = [
     "PixelTermState",
     "Unknowns",
     "camera_points",
+    "camera_step",
     "check_pixels",
     "free_columns",
     "pixel_block",
@@ -82,6 +83,12 @@ def camera_points(kin, camera: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, n
     return (p_link - camera[:3, 3]) @ camera[:3, :3], p_link
 
 
+def camera_step(p_cam: np.ndarray) -> np.ndarray:
+    """How points ``(m, 3)`` of the camera frame move by the camera's step ``(m, 3, 6)``."""
+    m = len(p_cam)
+    return np.concatenate([-np.broadcast_to(np.eye(3), (m, 3, 3)), skew(p_cam)], axis=2)
+
+
 def pixel_jacobian(
     placements: Placements,
     state: PixelTermState,
@@ -109,7 +116,7 @@ def pixel_jacobian(
         columns = placements.path(chain).columns
         ang, lin = joint_twists(placements, chain, kin)
         moving[:, :, columns] = np.moveaxis(lin - skew(p_link)[:, None] @ ang, 1, 2)
-    by_camera = np.concatenate([-np.broadcast_to(np.eye(3), (m, 3, 3)), skew(p_cam)], axis=2)
+    by_camera = camera_step(p_cam)
     mount = RcT @ kin.R[:, -1]  # d(point in the camera) / d(point in the tool)
     by_mount = mount @ np.concatenate([np.broadcast_to(np.eye(3), (m, 3, 3)), -skew(X)], axis=2)
     parts = [D @ by_camera, D @ (RcT @ moving.reshape(m, 3, -1)), D @ by_mount]

@@ -12,12 +12,14 @@ from ..kinematics.robot import Chain
 from .contact_result import GapStats, TermPart, part_stats, row_stats, units
 from .diagnosis import NOISE_FACTOR, suspect
 from .outliers import Outlier
-from .pixel_chain import PixelKind, PixelPart, PixelTermState
+from .pixel_chain import PixelKind, PixelPart, PixelTermState, camera_step
 from .report import parameter_entries, pose_dict
 
 __all__ = [
     "DETECTOR_PX",
     "EXPECTED_PX",
+    "LENS_GAIN",
+    "LENS_PX",
     "REFUSED_PX",
     "PixelChain",
     "check_fitted_pixels",
@@ -32,6 +34,16 @@ Rationale and measurements: docs/developers/engine.md#expected_px"""
 DETECTOR_PX = 1.0
 """A corner detector's largest noise (RMS) [px]: a fraction of a pixel (the simulations use
 0.2 to 0.5 px); the pixels' noise, as no option gives it."""
+
+LENS_GAIN = 0.9
+"""Fitting the intrinsics too would leave under this fraction of the training reprojection
+error (RMS): the fit hints at them (with :data:`LENS_PX`).
+Rationale and measurements: docs/developers/engine.md#lens_gain"""
+
+LENS_PX = 0.1
+"""Reprojection error [px RMS] the intrinsics must explain (the quadratic difference of the
+errors before and after fitting them) for the fit to hint at them: a tenth of a pixel.
+Measurements: as ``LENS_GAIN``."""
 
 REFUSED_PX = NOISE_FACTOR * DETECTOR_PX
 """Calibrated reprojection error (RMS) [px] over which pixels that the registration and the
@@ -58,7 +70,9 @@ class PixelChain(TermPart):
     parts' reprojection errors [px]; ``registered``, ``state``: its registration on the nominal
     robot and its fitted state (camera, target, lens); ``parameters``: its unknowns' report
     entries (changes from the registration); ``outliers``: its rows set aside;
-    ``postures``: the postures of ``train`` and ``held_out`` (a row is a pixel).
+    ``postures``: the postures of ``train`` and ``held_out`` (a row is a pixel);
+    ``lens_px``: the training reprojection error [px RMS] were the intrinsics fitted too
+    (:func:`!lens_rms`; None: they were).
     """
 
     chain: Chain
@@ -73,6 +87,7 @@ class PixelChain(TermPart):
     parameters: tuple[dict, ...] = ()
     outliers: tuple[Outlier, ...] = ()
     postures: dict[str, int] = field(default_factory=dict)
+    lens_px: float | None = None
     rows: ClassVar[str] = "pixels"
 
     def camera_dict(self) -> dict:
@@ -113,20 +128,35 @@ class PixelChain(TermPart):
         return self.postures["train"]
 
     def warnings(self) -> list[str]:
-        """A calibrated reprojection error above :data:`EXPECTED_PX` (RMS), said once."""
+        """A calibrated reprojection error above :data:`EXPECTED_PX` (RMS), said once.
+
+        Under it, an error the intrinsics would explain (:data:`LENS_GAIN`, :data:`LENS_PX`)
+        when they were not fitted.
+        """
         worst = max(
             (k for k in ("train", "held_out") if k in self.pixels),
             key=lambda k: self.pixels[k]["reprojection_rms_px"],
         )
         rms = self.pixels[worst]["reprojection_rms_px"]
         if not rms > EXPECTED_PX:
-            return []
+            return self._lens_hint()
         fix = "" if self.state.what.intrinsics else ", or fit them: Unknowns(intrinsics=True)"
         return [
             f"camera {self.name}: the calibrated reprojection error is {rms:.1f} px RMS "
             f"({worst.replace('_', '-')}), far above a detector's noise (over "
             f"{EXPECTED_PX:g} px): check its intrinsics (image width and height swapped, the "
             f"focal length, the principal point){fix}"
+        ]
+
+    def _lens_hint(self) -> list[str]:
+        """The intrinsics hinted at: fitted too, they would lower the error much."""
+        now, fitted = self.pixels["train"]["reprojection_rms_px"], self.lens_px
+        if fitted is None or not (fitted < LENS_GAIN * now and now**2 - fitted**2 > LENS_PX**2):
+            return []
+        return [
+            f"camera {self.name}: fitting its intrinsics too would lower the reprojection "
+            f"error from {now:.3g} to {fitted:.3g} px RMS or less (train, to first order): check "
+            f"them (the focal length, the principal point), or fit them: Unknowns(intrinsics=True)"
         ]
 
     def heading(self) -> str:
@@ -173,7 +203,27 @@ def pixel_result(chain, train, held, registered, state, x, std, term: int) -> Pi
         pixels,
         parameters=tuple(entries),
         postures=postures,
+        lens_px=lens_rms(state, train),
     )
+
+
+def lens_rms(state: PixelTermState, part: PixelPart) -> float | None:
+    """The reprojection error of ``part`` [px RMS] were the intrinsics fitted too, or None.
+
+    To first order, with the camera's placement fitted again beside them: the rows' errors
+    are already at the least squares of every unknown fitted, the joints' too (fitted again,
+    they could only lower it further). None: the intrinsics were fitted, or no row.
+    """
+    if state.what.intrinsics or part.m == 0:
+        return None
+    p_cam = state.seen(part)
+    seen = state.lens.projection(p_cam, derivatives=True)
+    by = np.concatenate([np.asarray(seen.d_point) @ camera_step(p_cam), seen.d_parameters], 2)
+    A, e = by.reshape(2 * part.m, -1), (seen.pixels - part.rows.pixels).ravel()
+    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(e))):
+        return None
+    r = e - A @ np.linalg.lstsq(A, e, rcond=None)[0]
+    return float(np.sqrt(r @ r / part.m))
 
 
 def check_fitted_pixels(part: PixelChain) -> None:

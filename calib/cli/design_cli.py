@@ -318,7 +318,8 @@ def add_design_parser(sub) -> None:
         "--noise-mm",
         type=positive_number,
         default=0.05,
-        help="noise for the printed error prediction [mm] (default: 0.05)",
+        help="the instrument's noise per axis (std, as simulate's) for the printed error "
+        "prediction [mm]; the design does not depend on it (default: 0.05)",
     )
     g.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_design)

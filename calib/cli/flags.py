@@ -26,6 +26,7 @@ FLAGS = {
     "constraints=calib.design.constraints.Constraints(collision=False)": "--no-collision",
     "(term=)": "(--term-index)",
     "the number of folds must be": "--folds must be",
+    "robot_seed must be": "--robot-seed must be",
     "params='complete' fits": "--params complete fits",
     "compare params='offsets'": "compare --params offsets",
     "did not see: folds)": "did not see: --folds K)",

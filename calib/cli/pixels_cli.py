@@ -383,6 +383,7 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
     from ..kinematics.robot import load_chain
     from ..measurements.pixel_simulation import simulate_cameras
     from ..measurements.pixels import observations_csv
+    from ..measurements.simulation import robot_of
     from ..measurements.true_robot import true_robot
 
     _refuse(args, NOT_PIXELS_SIMULATE)
@@ -394,8 +395,9 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
     check_output_paths({"--out": out, "--truth": truth_path}, inputs)
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "true.urdf"
+        robot = robot_of(args.seed, args.robot_seed)
         truth = true_robot(
-            list(chains), path, error_mm=args.error_mm, error_mrad=args.error_mrad, seed=args.seed
+            list(chains), path, error_mm=args.error_mm, error_mrad=args.error_mrad, seed=robot
         )
         true_chains = [load_chain(str(path), base=c.base_frame, tool=c.tool_frame) for c in chains]
         joints, q = _postures(chains, args.configs, args.seed, args.configs_file)

@@ -51,6 +51,7 @@ __all__ = [
 def _simulate_contacts(args: argparse.Namespace) -> int:
     """``calib simulate --measure plane|...``: touches of the true robot, joints only."""
     from ..measurements.contact_campaign import contacts_csv, simulate_contacts
+    from ..measurements.simulation import robot_words
 
     for given, option in (
         (args.marker is not None, "--marker"),
@@ -91,6 +92,7 @@ def _simulate_contacts(args: argparse.Namespace) -> int:
         seed=args.seed,
         params=args.params,
         objects=planes,
+        robot_seed=args.robot_seed,
     )
     truth = campaign.truth
     write_outputs({out: contacts_csv(campaign.data), truth_path: json_text(truth.to_dict())})
@@ -100,6 +102,7 @@ def _simulate_contacts(args: argparse.Namespace) -> int:
         f"{objects}, {len(truth.params)} "
         f"{truth.params.label} parameters perturbed ({truth.error_mm:g} mm, "
         f"{truth.error_mrad:g} mrad), joint noise {truth.noise_mrad:g} mrad, seed {truth.seed}"
+        f"{robot_words(truth.robot_seed)}"
     )
     print(f"wrote {out} and {truth_path} (true errors and {campaign.data.id_column}s)")
     return 0
@@ -180,7 +183,7 @@ def _simulate_chain(
     ``(--out, --truth)``, checked.
     """
     from ..measurements.csvfile import measurements_csv
-    from ..measurements.simulation import simulate
+    from ..measurements.simulation import robot_words, simulate
 
     out, truth_path = paths
     campaign = simulate(
@@ -194,6 +197,7 @@ def _simulate_chain(
         args.noise_mrad,
         args.seed,
         args.params,
+        robot_seed=args.robot_seed,
     )
     truth = campaign.truth
     write_outputs(
@@ -205,7 +209,7 @@ def _simulate_chain(
         f"{len(truth.params)} {truth.params.label} parameters perturbed "
         f"({truth.error_mm:g} mm, {truth.error_mrad:g} mrad), noise {truth.noise_mm:g} mm"
         + (f", {truth.noise_mrad:g} mrad" if kind.is_pose else "")
-        + f", seed {truth.seed}"
+        + f", seed {truth.seed}{robot_words(truth.robot_seed)}"
     )
     of = " of marker 1" if args.marker and len(args.marker) > 1 else ""
     print(f"wrote {out} and {truth_path} (true errors, {truth.analysis.n_base} base values{of})")
@@ -218,6 +222,7 @@ def _simulate_tree(args: argparse.Namespace, tree: Tree, configs, paths) -> int:
     ``configs``: a count or joint positions; ``paths``: ``(--out, --truth)``, checked.
     """
     from ..measurements.csvfile import measurements_csv
+    from ..measurements.simulation import robot_entry, robot_words
     from ..measurements.tree_campaign import simulate_tree
 
     out, truth_path = paths
@@ -230,6 +235,7 @@ def _simulate_tree(args: argparse.Namespace, tree: Tree, configs, paths) -> int:
         args.noise_mm,
         args.seed,
         args.params,
+        robot_seed=args.robot_seed,
     )
     truth = {
         "robot": tree.name,
@@ -239,13 +245,14 @@ def _simulate_tree(args: argparse.Namespace, tree: Tree, configs, paths) -> int:
         "errors": dict(zip(camp.params.names, camp.errors.tolist(), strict=True)),
         "markers": camp.markers.tolist(),
         "seed": args.seed,
-    }
+    } | robot_entry(camp.robot_seed)
     write_outputs({out: measurements_csv(camp.measurements), truth_path: json_text(truth)})
     print(
         f"{tree.name}: {counted(camp.measurements.m // tree.n_tools, 'configurations')} x "
         f"{tree.n_tools} tools "
         f"({', '.join(tree.tool_frames)}), {len(camp.params)} {camp.params.label} parameters "
         f"perturbed ({args.error_mm:g} mm, {args.error_mrad:g} mrad), noise {args.noise_mm:g} mm"
+        f"{robot_words(camp.robot_seed)}"
     )
     print(f"wrote {out} and {truth_path}")
     return 0
@@ -284,7 +291,8 @@ def add_simulate_parser(sub) -> None:
         "--seed",
         type=int,
         default=0,
-        help="seed of the configurations, errors and noise (default: 0)",
+        help="seed of the configurations and noise, and of the errors unless --robot-seed "
+        "(default: 0)",
     )
     _add_error_args(p.add_argument_group("errors and noise"))
     pixels_cli.add_pixel_arguments(p.add_argument_group("cameras (--measure pixels)"))
@@ -327,6 +335,12 @@ def _add_instrument_args(g: Group) -> None:
 
 def _add_error_args(g: Group) -> None:
     """The true robot's errors and the instrument's noise."""
+    g.add_argument(
+        "--robot-seed",
+        type=int,
+        help="seed of the true robot's errors (default: --seed): --seed 2 --robot-seed 1 "
+        "measures the true robot of --seed 1 at the configurations of --seed 2",
+    )
     g.add_argument(
         "--params",
         choices=PARAMETER_SETS,

@@ -42,7 +42,7 @@ from .csvfile import csv_records, parse_number, read_data_text
 from .data import JOINT_PREFIX, DataWarning
 from .joint_columns import column_keys
 from .limits import check_limits, joint_bounds, warn_default_ranges
-from .simulation import chain_argument, perturbed
+from .simulation import chain_argument, perturbed, robot_entry, robot_of, robot_words
 
 ID_COLUMNS = {
     "plane": "plane",
@@ -352,10 +352,11 @@ class ContactTruth:
         true_mdh: The true MDH model (frame -1: the chain's base frame).
         frames: Each plane's or point's frame in the base frame ``(4, 4)``, by id (z: the
             plane's normal; the contact frame coincides with it at the reference touch).
-        seed: Seed of everything drawn.
+        seed: Seed of everything drawn (the errors: unless ``robot_seed``).
         error_mm: Standard deviation of the length errors [mm].
         error_mrad: Standard deviation of the angle errors [mrad].
         noise_mrad: Standard deviation of the joint noise [mrad, or mm for a prismatic joint].
+        robot_seed: Seed of the errors where it is not ``seed``, else None.
     """
 
     robot: str
@@ -368,6 +369,7 @@ class ContactTruth:
     error_mm: float
     error_mrad: float
     noise_mrad: float
+    robot_seed: int | None = None
 
     def __repr__(self) -> str:
         """One line (the errors, the true model and the objects are attributes)."""
@@ -375,7 +377,8 @@ class ContactTruth:
         return (
             f"<ContactTruth {self.robot}: {objects} ({', '.join(self.frames)}), "
             f"{len(self.params)} {self.params.label} parameters perturbed ({self.error_mm:g} mm, "
-            f"{self.error_mrad:g} mrad), joint noise {self.noise_mrad:g} mrad, seed {self.seed}>"
+            f"{self.error_mrad:g} mrad), joint noise {self.noise_mrad:g} mrad, seed {self.seed}"
+            f"{robot_words(self.robot_seed)}>"
         )
 
     def to_dict(self) -> dict:
@@ -396,7 +399,7 @@ class ContactTruth:
             **old,
             "deprecated": {"points": TRUTH_POINTS_NOTE} if old else {},
             "true_mdh": self.true_mdh.rows(),
-        }
+        } | robot_entry(self.robot_seed)
 
 
 @dataclass(frozen=True, eq=False)
@@ -423,6 +426,7 @@ def simulate_contacts(
     seed: int = 0,
     params: str = "complete",
     objects: Mapping | None = None,
+    robot_seed: int | None = None,
 ) -> ContactCampaign:
     """Simulate touches of a perturbed ("true") copy of a chain on planes or points.
 
@@ -447,6 +451,9 @@ def simulate_contacts(
             ``contacts`` drawn ones. With ``error_mm=0, error_mrad=0`` on a chain of a
             :func:`!true_robot.true_robot`'s URDF, several chains touch one floor of one
             true robot.
+        robot_seed: Seed of the true robot's errors, or None: ``seed`` (as
+            :func:`~calib.simulate`): the touches start from the same random configurations,
+            projected onto the contact on that robot.
 
     Raises:
         InvalidArgumentError: A bad argument, or a contact the chain cannot hold often enough
@@ -464,6 +471,7 @@ def simulate_contacts(
         )
     contacts = contacts if given is None else len(given)
     configs, seed = check_count(configs, "configs"), check_count(seed, "seed", 0)
+    robot = robot_of(seed, robot_seed)
     contacts = check_count(contacts, "contacts", 1, configs)  # each touched at least once
     check_size(int(configs), MAX_TOUCHES, "touches")
     check_size(int(contacts), MAX_OBJECTS, f"{ID_COLUMNS[kind.label]}s")
@@ -472,7 +480,7 @@ def simulate_contacts(
     nominal = from_chain(chain)
     pset = parameter_set(nominal, params)
     warn_default_ranges(chain)
-    errors, true_mdh = perturbed(nominal, pset, (error_mm, error_mrad), seed)
+    errors, true_mdh = perturbed(nominal, pset, (error_mm, error_mrad), robot)
     frames, ids, q = _every_touch(chain, true_mdh, kind, (configs, contacts, seed), given)
     q = q + 1e-3 * noise_mrad * np.random.default_rng([seed, 2]).standard_normal(q.shape)
     q.setflags(write=False)
@@ -489,6 +497,7 @@ def simulate_contacts(
         error_mm,
         error_mrad,
         noise_mrad,
+        None if robot == seed else robot,
     )
     return ContactCampaign(data, truth)
 

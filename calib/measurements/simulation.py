@@ -12,7 +12,9 @@ seeded random configurations within the joint limits, then noise is added: isotr
 of standard deviation ``noise_mm`` [mm] on x, y, z and, for poses, a rotation vector of
 standard deviation ``noise_mrad`` [mrad] per axis (base frame), left-multiplied onto the true
 orientation. Several markers (a sequence of points on the tool) are measured at each
-configuration, each with noise of its own, drawn after marker 1's.
+configuration, each with noise of its own, drawn after marker 1's. One seed draws the
+configurations, the errors and the noise; ``robot_seed`` draws the errors instead (the same
+true robot at other configurations, or other true robots at the same ones).
 """
 
 from __future__ import annotations
@@ -59,13 +61,16 @@ class SimulationTruth:
             :func:`calib.analyze`) at the campaign's configurations.
         base_values: True value of each base parameter, ``dX1 + B dX2`` [rad or m], in the
             order of ``analysis.base`` (first order: exact where the regrouping is exact).
-        seed: Seed of the configurations, the errors and the noise.
+        seed: Seed of the configurations and the noise, and of the errors unless
+            ``robot_seed``.
         error_mm: Standard deviation of the length errors [mm].
         error_mrad: Standard deviation of the angle errors [mrad].
         noise_mm: Standard deviation of the position noise per axis [mm].
         noise_mrad: Standard deviation of the orientation noise per axis [mrad].
         markers: Every measured point in the tool frame ``(K, 3)`` [m], marker 1 first (the
             one ``measurement`` and ``analysis`` hold).
+        robot_seed: Seed of the errors where it is not ``seed`` (``simulate(robot_seed=)``),
+            else None.
     """
 
     robot: str
@@ -83,6 +88,7 @@ class SimulationTruth:
     noise_mm: float
     noise_mrad: float
     markers: np.ndarray | None = None
+    robot_seed: int | None = None
 
     def __repr__(self) -> str:
         """One line (the errors and the true model are attributes, ``to_dict()`` all of it)."""
@@ -92,7 +98,7 @@ class SimulationTruth:
             f"<SimulationTruth {self.robot}: {self.base_frame} -> {self.tool_frame}, measure "
             f"{self.measurement.label}, {len(self.params)} {self.params.label} parameters "
             f"perturbed ({self.error_mm:g} mm, {self.error_mrad:g} mrad), noise {noise}, "
-            f"seed {self.seed}>"
+            f"seed {self.seed}{robot_words(self.robot_seed)}>"
         )
 
     def to_dict(self) -> dict:
@@ -120,7 +126,7 @@ class SimulationTruth:
             },
             "regrouping": self.analysis.regrouping(),
             "true_mdh": self.true_mdh.rows(),
-        }
+        } | robot_entry(self.robot_seed)
 
 
 @dataclass(frozen=True, eq=False)
@@ -177,11 +183,14 @@ def simulate(
     noise_mrad: float | None = None,
     seed: int = 0,
     params: str = DEFAULT_SET,
+    *,
+    robot_seed: int | None = None,
 ) -> Campaign:
     """Simulate a measurement campaign on a perturbed ("true") copy of a chain.
 
     The configurations are those ``calib analyze --seed SEED`` draws (uniform within the
-    joint limits); the errors and the noise come from two further streams of the same seed.
+    joint limits); the errors and the noise come from two further streams of the same seed
+    (the errors: of ``robot_seed``, when given).
 
     Args:
         chain: The nominal chain, or a catalog name or URDF path (loaded as
@@ -201,6 +210,9 @@ def simulate(
             with a measure of no orientation is refused.
         seed: Seed (an integer >= 0; not None, a bool or a float).
         params: Parameter set perturbed: ``complete`` (default) or ``paper``.
+        robot_seed: Seed of the true robot's errors (an integer >= 0), or None: ``seed``.
+            ``seed=2, robot_seed=1``: the true robot of ``seed=1`` at the configurations
+            (and with the noise) of ``seed=2``.
 
     Returns:
         The campaign.
@@ -215,18 +227,17 @@ def simulate(
     given = isinstance(configs, np.ndarray | list | tuple)
     m = 0 if given else check_count(configs, "the number of configurations")
     seed = check_count(seed, "the seed", 0)
+    robot = robot_of(seed, robot_seed)
     error_mm, error_mrad = length_mm(error_mm, "error_mm"), angle_mrad(error_mrad, "error_mrad")
     noise_mm, noise_mrad = _checked_noise(noise_mm, noise_mrad, measurement)
     nominal = from_chain(chain)
     pset = parameter_set(nominal, params)
 
     q = campaign_configurations(chain, configs if given else m, seed)
-    errors, true_mdh = perturbed(nominal, pset, (error_mm, error_mrad), seed)
-    rng_noise = np.random.default_rng([seed, 2])
-    position, quat = _measured(true_mdh.kinematics(q), markers, (noise_mm, noise_mrad), rng_noise)
+    errors, true_mdh = perturbed(nominal, pset, (error_mm, error_mrad), robot)
+    position, quat = _measured(true_mdh.kinematics(q), markers, (noise_mm, noise_mrad), seed)
 
     analysis = analyze_model(nominal.idealized(), pset, measurement, q, robot=chain.name, seed=seed)
-    base_values = _base_values(errors, pset, analysis)
 
     data = Measurements(
         chain.joint_names,
@@ -245,15 +256,31 @@ def simulate(
         true_mdh=true_mdh,
         measurement=measurement,
         analysis=analysis,
-        base_values=read_only(base_values),
+        base_values=read_only(_base_values(errors, pset, analysis)),
         seed=seed,
         error_mm=error_mm,
         error_mrad=error_mrad,
         noise_mm=noise_mm,
         noise_mrad=noise_mrad,
         markers=read_only(np.array([k.marker_array for k in markers])),
+        robot_seed=None if robot == seed else robot,
     )
     return Campaign(data, truth)
+
+
+def robot_of(seed: int, robot_seed: int | None) -> int:
+    """The seed of a campaign's true robot: ``robot_seed`` checked, or ``seed`` (None)."""
+    return seed if robot_seed is None else check_count(robot_seed, "robot_seed", 0)
+
+
+def robot_words(robot_seed: int | None) -> str:
+    """``, robot seed R`` for a true robot of another seed than the campaign's, else empty."""
+    return "" if robot_seed is None else f", robot seed {robot_seed}"
+
+
+def robot_entry(robot_seed: int | None) -> dict:
+    """A truth record's ``robot_seed`` (a true robot of another seed), else nothing."""
+    return {} if robot_seed is None else {"robot_seed": robot_seed}
 
 
 def _checked_noise(noise_mm, noise_mrad, measurement: Measurement) -> tuple[float, float]:
@@ -302,13 +329,15 @@ def perturbed(
     return errors, pset.apply(nominal, errors)
 
 
-def _measured(kin, markers: list, noise: tuple, rng_noise: np.random.Generator):
+def _measured(kin, markers: list, noise: tuple, seed: int):
     """The measured points ``(m, 3 K)`` and, for a pose, quaternions ``(m, 4)`` (else None).
 
-    ``noise``: [mm, mrad]. Marker 1's position noise is drawn first, then the orientation
-    noise, then each other marker's: one marker's campaign is the same with or without others.
+    ``noise``: [mm, mrad], drawn from the stream ``[seed, 2]``. Marker 1's position noise is
+    drawn first, then the orientation noise, then each other marker's: one marker's campaign
+    is the same with or without others.
     """
     noise_mm, noise_mrad = noise
+    rng_noise = np.random.default_rng([seed, 2])
     position = measured_point(kin, markers[0].marker_array)
     m = len(position)
     position = position + 1e-3 * noise_mm * rng_noise.standard_normal((m, 3))
@@ -353,5 +382,8 @@ __all__ = [
     "campaign_configurations",
     "chain_argument",
     "perturbed",
+    "robot_entry",
+    "robot_of",
+    "robot_words",
     "simulate",
 ]

@@ -5,7 +5,8 @@ every parameter of its standard set perturbed by a seeded normal error (``error_
 for lengths, ``error_mrad`` [mrad] for angles); a point on each tool (``markers``, in the
 tool's frame) is recorded at seeded random configurations, one row per configuration and
 tool (the ``tool`` column names it), and isotropic Gaussian noise of ``noise_mm`` [mm] is
-added. The measurement frame is the true tree's frame -1.
+added. The measurement frame is the true tree's frame -1. The errors come from ``robot_seed``
+when it is given.
 """
 
 from __future__ import annotations
@@ -14,14 +15,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.checks import angle_mrad, length_mm
+from ..core.checks import angle_mrad, check_count, length_mm
 from ..exceptions import InvalidArgumentError
 from ..identification.parameters import ParameterSet
 from ..identification.tree_jacobian import tree_parameters
 from ..kinematics.tree import Tree
 from ..kinematics.tree_model import TreeMDH, from_tree
 from .data import Measurements
-from .simulation import campaign_configurations, perturbed
+from .simulation import campaign_configurations, perturbed, robot_of
 
 __all__ = ["TreeCampaign", "simulate_tree", "true_points"]
 
@@ -36,6 +37,7 @@ class TreeCampaign:
         errors: The true error of each of its parameters [rad or m].
         true_mdh: The true tree.
         markers: The true point on each tool ``(T, 3)`` [m].
+        robot_seed: Seed of the errors where it is not the campaign's, else None.
     """
 
     measurements: Measurements
@@ -43,6 +45,7 @@ class TreeCampaign:
     errors: np.ndarray
     true_mdh: TreeMDH
     markers: np.ndarray
+    robot_seed: int | None = None
 
     def __repr__(self) -> str:
         """One line (the rows are ``measurements``, the truth the other attributes)."""
@@ -69,6 +72,8 @@ def simulate_tree(
     noise_mm: float = 0.0,
     seed: int = 0,
     params: str = "complete",
+    *,
+    robot_seed: int | None = None,
 ) -> TreeCampaign:
     """Simulate a campaign measuring every tool of a tree at random configurations.
 
@@ -80,8 +85,10 @@ def simulate_tree(
         error_mm: Std of the length errors [mm].
         error_mrad: Std of the angle errors [mrad].
         noise_mm: Std of the measurement noise per axis [mm].
-        seed: Seed of every draw.
+        seed: Seed of every draw (the errors': unless ``robot_seed``).
         params: Standard set to perturb (``paper`` or ``complete``).
+        robot_seed: Seed of the true tree's errors, or None: ``seed`` (as
+            :func:`~.simulation.simulate`).
 
     Raises:
         InvalidArgumentError: A bad argument.
@@ -99,11 +106,12 @@ def simulate_tree(
         raise InvalidArgumentError(f"markers must be (3,) or ({n_tools}, 3) finite numbers [m]")
     error_mm, error_mrad = length_mm(error_mm, "error_mm"), angle_mrad(error_mrad, "error_mrad")
     noise_mm = length_mm(noise_mm, "noise_mm")
+    robot = robot_of(check_count(seed, "the seed", 0), robot_seed)
     nominal = from_tree(tree)
     pset = tree_parameters(nominal, params)
     count = isinstance(configs, int | np.integer) and not isinstance(configs, bool)
     q = campaign_configurations(tree, int(configs) if count else configs, seed)
-    errors, true_mdh = perturbed(nominal, pset, (error_mm, error_mrad), seed)
+    errors, true_mdh = perturbed(nominal, pset, (error_mm, error_mrad), robot)
     points = true_points(true_mdh, q, mk).reshape(-1, 3)
     points = points + 1e-3 * noise_mm * np.random.default_rng([seed, 2]).standard_normal(
         points.shape
@@ -116,4 +124,4 @@ def simulate_tree(
         tool=tree.tool_frames * len(q),
         coupling=tree.coupling,
     )
-    return TreeCampaign(data, pset, errors, true_mdh, mk)
+    return TreeCampaign(data, pset, errors, true_mdh, mk, None if robot == seed else robot)
