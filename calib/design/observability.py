@@ -381,21 +381,28 @@ def reference(model: ObservationModel, q: np.ndarray) -> Reference:
 
 @dataclass(frozen=True)
 class Indices:
-    """Observability indices of K configurations (see the module docstring).
+    """Observability indices of K configurations, from the singular values of their rows.
+
+    ``s_1 >= ... >= s_b`` are the singular values of the scaled observation matrix ``W_b`` (K
+    configurations' rows x b independent parameters; every angle column is scaled to the arc [m] it
+    sweeps at the chain's characteristic length), ``M = W_b^T W_b`` its information matrix. The
+    module ``calib.design.observability`` has the indices' sources and the scaling.
 
     Attributes:
         configs: Number of configurations K.
         parameters: Number of parameters b.
         rank: Numerical rank of ``W_b`` (b when the set identifies every parameter).
-        cond: Condition number (inf when rank-deficient).
-        o1: Borm and Menq's index O1.
-        o3: Smallest singular value O3.
-        o4: Noise amplification index O4.
-        d: D = log det M (-inf when rank-deficient).
-        a: A = trace M^-1 (inf when rank-deficient).
-        i: I: the predicted RMS position error per unit noise on the reference set (inf when
-            rank-deficient, None without a reference set).
-        g: G: its maximum over the reference configurations and points.
+        cond: Condition number ``s_1 / s_b`` (inf when rank-deficient); lower is better.
+        o1: Borm and Menq's index ``(s_1 ... s_b)^(1/b) / sqrt(K)``; higher is better.
+        o3: Smallest singular value ``s_b``; higher is better.
+        o4: Noise amplification index ``s_b^2 / s_1``; higher is better.
+        d: ``log det M`` (-inf when rank-deficient); higher is better.
+        a: ``trace M^-1``, the summed variance of the scaled parameters per unit noise (inf
+            when rank-deficient); lower is better.
+        i: The predicted RMS position error of the calibrated points on the reference set
+            per unit of measurement noise (times the noise [mm]: the expected RMS error
+            [mm]; inf when rank-deficient, None without a reference set); lower is better.
+        g: Its maximum over the reference configurations and points.
     """
 
     configs: int

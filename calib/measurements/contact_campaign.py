@@ -306,11 +306,17 @@ def _readings(records, names: tuple[str, ...], cols: dict[str, int], source: str
 
 
 def read_contacts(path: str | Path, chain: Chain, measure) -> ContactData:
-    """Read and check a contact CSV file (see the module docstring for the format).
+    """Read and check a contact CSV file: the joint positions of each touch.
+
+    One header line, then one row per touch. The robot's other joints (one degree of freedom each)
+    are read too (their positions load the joints of ``elastic``); other columns are ignored with
+    one note, but a coordinate column (``x``, ``y``, ``z``, a quaternion) is an error: a touch
+    measures nothing but the joints. The module ``calib.measurements.contact_campaign`` has the long
+    form.
 
     Args:
-        path: The CSV file: an id column (``plane`` or ``point``, by the kind) and the
-            chain's joint positions [rad or m], one touch per line.
+        path: The CSV file: an id column (``plane`` or ``point``, by the kind) naming what
+            each touch touches, and the chain's joint positions [rad or m], one touch per line.
         chain: The chain that touches (without mimic joints).
         measure: The contact kind, as its label (``plane``, ``plane-point``,
             ``fixed-point``, ``fixed-pose``) or a contact kind object.

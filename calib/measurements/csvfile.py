@@ -339,7 +339,15 @@ def parse_measurements(
     columns: Columns | None = None,
     path: str | None = None,
 ) -> Measurements:
-    """Parse and validate CSV text (see the module docstring for the format).
+    """Parse and validate the text of a measurement CSV: joint positions and measured points.
+
+    One header line, then one row per configuration, columns in any order: one column per
+    independent joint of the chain, named as the URDF joint [rad or m]; the measured point
+    ``x, y, z`` (``x1, y1, z1``, ``x2, ...`` for several) [m, or ``columns.units``]; for a
+    pose, the tool frame's orientation in the measurement frame (``qx, qy, qz, qw`` scalar
+    last, or the format ``columns`` names); a tree's file adds a ``tool`` column. A joint
+    named like a measurement column is written ``joint:NAME``. The module
+    ``calib.measurements.csvfile`` has the long form.
 
     Args:
         text: The CSV content.
@@ -527,7 +535,15 @@ def _marker_set(position: np.ndarray, src: str, lines) -> tuple[np.ndarray, np.n
 def read_measurements(
     path: str | Path, chain: Chain | Tree, columns: Columns | None = None
 ) -> Measurements:
-    """Read and validate a measurement CSV file (see the module docstring for the format).
+    """Read and validate a measurement CSV file: joint positions and measured points.
+
+    One header line, then one row per configuration, columns in any order: one column per
+    independent joint of the chain, named as the URDF joint [rad or m]; the measured point
+    ``x, y, z`` (``x1, y1, z1``, ``x2, ...`` for several) [m, or ``columns.units``]; for a
+    pose, the tool frame's orientation in the measurement frame (``qx, qy, qz, qw`` scalar
+    last, or the format ``columns`` names); a tree's file adds a ``tool`` column. A joint
+    named like a measurement column is written ``joint:NAME``. The module
+    ``calib.measurements.csvfile`` has the long form.
 
     Args:
         path: The CSV file.
