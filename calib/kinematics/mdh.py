@@ -264,6 +264,10 @@ class MDHModel:
         """Rows of the tool frames, ``(n + 1,)``."""
         return (self.n + 1,)
 
+    def tool_frame_of(self, k: int) -> str | None:
+        """The tool frame row ``k`` stands for (row n+1), or None (another row)."""
+        return self.tool_frame if k == self.n + 1 else None
+
     def kinematics(self, q: np.ndarray) -> Kinematics:
         """Every frame at every configuration, vectorised over configurations.
 
