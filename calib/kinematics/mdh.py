@@ -449,8 +449,9 @@ def from_lines(
 
     Raises:
         InvalidArgumentError: Arrays of the wrong shape, not finite, coordinates beyond
-            :data:`~.urdf_xml.MAX_COORDINATE`, a zero direction, sigma empty or not 0 or 1, a sign not
-            +1 or -1, a tool that is not a rigid transform, or a tolerance outside (0, pi/4).
+            :data:`~.urdf_xml.MAX_COORDINATE`, a zero direction, sigma empty or not 0 or 1, a
+            sign not +1 or -1, a tool that is not a rigid transform, or a tolerance outside
+            (0, pi/4).
     """
     return _converted_lines(points, directions, sigma, tool, joint_names, parallel_tol, sign)
 
