@@ -41,7 +41,7 @@ from ..kinematics.robot import Chain, check_robot
 from ..kinematics.so3 import matrix_to_quaternion, rotation_matrix, rpy_to_matrix
 from ..kinematics.tree import Tree
 from . import marker_set
-from .csv_text import NUMBER, csv_records, parse_number
+from .csv_text import NUMBER, csv_records, header_names, parse_number
 from .data import (
     JOINT_PREFIX,
     MAX_COORDINATE,
@@ -254,16 +254,7 @@ def _joint_keys(chain: Chain | Tree) -> set[str]:
 
 def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, line: int):
     """Validate the header: column names, position columns, orientation format and columns."""
-    names = [c.strip() for c in cells]
-    seen: set[str] = set()
-    for j, name in enumerate(names):
-        if not name:
-            raise DataError(
-                src, f"header cell {j + 1} is empty: every column needs a name", row=line
-            )
-        if name in seen:
-            raise DataError(src, "duplicate column", row=line, column=name)
-        seen.add(name)
+    names = header_names(cells, src, line)
     keys = column_keys(names, (*chain.variable_names, *follower_names(chain)))
     for name in chain.variable_names:
         if JOINT_PREFIX + name not in keys:
