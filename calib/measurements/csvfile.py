@@ -332,13 +332,7 @@ def parse_measurements(
 ) -> Measurements:
     """Parse and validate the text of a measurement CSV: joint positions and measured points.
 
-    One header line, then one row per configuration, columns in any order: one column per
-    independent joint of the chain, named as the URDF joint [rad or m]; the measured point
-    ``x, y, z`` (``x1, y1, z1``, ``x2, ...`` for several) [m, or ``columns.units``]; for a
-    pose, the tool frame's orientation in the measurement frame (``qx, qy, qz, qw`` scalar
-    last, or the format ``columns`` names); a tree's file adds a ``tool`` column. A joint
-    named like a measurement column is written ``joint:NAME``. The module
-    ``calib.measurements.csvfile`` has the long form.
+    The format is :func:`read_measurements`'s.
 
     Args:
         text: The CSV content.

@@ -250,10 +250,7 @@ def _warn_ignored(names: Sequence[str], source: str, what: str) -> None:
 def parse_target(text: str, source: str = "<text>", path: str | None = None) -> Target:
     """A target from the text of a target CSV file: points fixed to the robot's links.
 
-    One header line, then one row per point: ``point`` (its id, text), ``x``, ``y``, ``z`` [m], the
-    point in its link's frame; optionally ``link`` (the link it is fixed to; without the column
-    every point is on the tool) and ``nx``, ``ny``, ``nz`` (the outward normal of its surface,
-    scaled to unit length). The module ``calib.measurements.pixels`` has the long form.
+    The format is :func:`read_target`'s.
 
     Args:
         text: The CSV content.
@@ -420,11 +417,7 @@ def parse_observations(
 ) -> PixelObservations:
     """Pixel observations from the text of an observation CSV (``OBS.csv``).
 
-    One header line, then one row per point seen in an image: one column per joint of ``joints``
-    [rad or m] (``joint:NAME`` for a joint named like another column), ``camera`` (a name of
-    ``cameras``), ``point`` (a target point's id) and ``u``, ``v`` [px] (the column and the row, the
-    centre of the top-left pixel at ``(0, 0)``, as OpenCV has them). The module
-    ``calib.measurements.pixels`` has the long form.
+    The format is :func:`read_observations`'s.
 
     Args:
         text: The CSV content.
