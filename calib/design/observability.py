@@ -381,27 +381,23 @@ def reference(model: ObservationModel, q: np.ndarray) -> Reference:
 
 @dataclass(frozen=True)
 class Indices:
-    """Observability indices of K configurations, from the singular values of their rows.
-
-    ``s_1 >= ... >= s_b`` are the singular values of the scaled observation matrix ``W_b`` (K
-    configurations' rows x b independent parameters; every angle column is scaled to the arc [m] it
-    sweeps at the chain's characteristic length), ``M = W_b^T W_b`` its information matrix. The
-    module ``calib.design.observability`` has the indices' sources and the scaling.
+    """Observability indices of K configurations (sources, scaling: ``calib.design.observability``).
 
     Attributes:
         configs: Number of configurations K.
         parameters: Number of parameters b.
         rank: Numerical rank of ``W_b`` (b when the set identifies every parameter).
-        cond: Condition number ``s_1 / s_b`` (inf when rank-deficient); lower is better.
+        cond: Condition number ``s_1 / s_b`` of the singular values ``s_1 >= ... >= s_b`` of
+            the scaled ``W_b`` (inf when rank-deficient); lower is better.
         o1: Borm and Menq's index ``(s_1 ... s_b)^(1/b) / sqrt(K)``; higher is better.
         o3: Smallest singular value ``s_b``; higher is better.
         o4: Noise amplification index ``s_b^2 / s_1``; higher is better.
-        d: ``log det M`` (-inf when rank-deficient); higher is better.
+        d: ``log det M``, ``M = W_b^T W_b`` (-inf when rank-deficient); higher is better.
         a: ``trace M^-1``, the summed variance of the scaled parameters per unit noise (inf
             when rank-deficient); lower is better.
         i: The predicted RMS position error of the calibrated points on the reference set
-            per unit of measurement noise (times the noise [mm]: the expected RMS error
-            [mm]; inf when rank-deficient, None without a reference set); lower is better.
+            per unit noise (times the noise [mm]: the expected RMS error [mm]; inf when
+            rank-deficient, None without a reference set); lower is better.
         g: Its maximum over the reference configurations and points.
     """
 
