@@ -122,7 +122,10 @@ names); the others are the names calib had before it (``calibrate_tree``, which 
 ...), the camera's pieces and the types of what the public calls return (``Campaign``,
 ``ProblemAnalysis``, ...), all silent attributes until session 51."""
 
-_moved = _moved_names(__name__, _MOVED, "0.2")
+_ALIASES = {"calibrate_tree": "calibrate"}
+"""Moved names that are another name of a public one: their warning names that one."""
+
+_moved = _moved_names(__name__, _MOVED, "0.2", _ALIASES)
 
 
 def __getattr__(name: str) -> object:

@@ -112,6 +112,11 @@ ROW = "0.1,0.2,0.3,0.4,0.5,0.6"
         (f"plane,{JOINTS[:-14]}", f"t,{ROW[:-4]}", "plane", "no column for joint wrist_3_joint"),
         (f"plane,{JOINTS}", f",{ROW}", "plane", "empty id"),
         (f"plane,{JOINTS}", f"t,{ROW[:-4]},abc", "plane", "not a number"),
+        # the header and the rows' lengths checked as every calib CSV's (csv_text.csv_table)
+        (f"plane,{JOINTS},,spot", f"t,{ROW},,s1", "plane", r"\(row 1\): header cell 8 is empty"),
+        (f"plane,{JOINTS},spot,spot", f"t,{ROW},a,b", "plane", r"column 'spot'.*duplicate column"),
+        (f"plane,{JOINTS}", f"t,{ROW},0.7", "plane", r"\(row 2\): expected 7 cells, found 8"),
+        (f"plane,{JOINTS}", "", "plane", "no touches after the header"),
     ],
 )
 def test_bad_contact_files(header, row, kind, match):

@@ -180,12 +180,16 @@ def test_from_lines_refuses_a_zero_direction_and_bad_arrays():
     good_u = [[0, 0, 1.0], [1, 0, 0]]
     bad_cases = [  # each refused for its own fault
         ((np.full((2, 3), np.nan), good_u, [0, 0], tool), "finite numbers, got NaN"),
-        ((np.zeros((3, 3)), good_u, [0, 0], tool), r"shape \(2, 3\), got \(3, 3\)"),
+        (
+            (np.zeros((3, 3)), good_u, [0, 0], tool),
+            r"sigma's 2\) must have shape \(2, 3\), got \(3, 3\)",
+        ),
         ((np.full((2, 3), 1e300), good_u, [0, 0], tool), "within 10000"),
         ((p, good_u, [0, 2], tool), r"sigma holds 0 .* got \[0.0, 2.0\]"),
         ((p, good_u, [0, 0], 2 * np.eye(4)), "rigid homogeneous transform"),
+        ((p, np.eye(3), [0, 0], tool), r"joint directions \(one per joint of sigma's 2\)"),
         ((p, good_u, [0, 0], np.eye(3)), r"tool pose must have shape \(4, 4\), got \(3, 3\)"),
-        ((p, good_u, [], tool), r"shape \(0, 3\), got \(2, 3\)"),  # no joint: 0 points
+        ((p, good_u, [], tool), r"at least one joint: sigma .* is empty"),  # not the points
         (("x", good_u, [0, 0], tool), "must be numbers, got 'x'"),
     ]
     for args, why in bad_cases:

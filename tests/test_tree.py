@@ -386,3 +386,40 @@ def test_tree_model_refuses_arrays_that_are_no_tree():
         model.replace(gamma=model.gamma[:-1])
     with pytest.raises(InvalidArgumentError, match="TreeMDH"):
         tree_parameters(from_chain(load_chain("ur5")))
+
+
+def test_a_tool_row_names_the_frame_pinocchio_places_there():
+    """``tool_frame_of``, the one map of a tree's tool rows to their frames (the analysis's
+    ``frame``, the tables, the JSON rows, the rank notes): the frame it names is, by
+    Pinocchio reading the URDF, where the row's path ends."""
+    tree, ref = tree_of("solo12"), pin_tree_of("solo12")
+    model = from_tree(tree)
+    q = own_random_q(tree.sigma, 5, seed=12)
+    T_ref = ref.poses(tree.joint_names, q)
+    by_name = {ref.model.frames[f].name: T_ref[:, i] for i, f in enumerate(ref.tools)}
+    T = model.forward(q)
+    for t in range(model.n_tools):
+        name = model.tool_frame_of(int(model.path_rows(t)[-1]))
+        assert np.abs(T[:, t] - by_name[name]).max() <= FK_TOL
+    assert [model.tool_frame_of(k) for k in range(model.n + 1)] == [None] * (model.n + 1)
+    found = quiet(analyze_model, model, "complete", Measurement.of("pose"), q)
+    assert found.row_frame(model.tool_rows[1]) == model.tool_frame_of(model.tool_rows[1])
+    chain = from_chain(load_chain("ur5"))
+    assert chain.tool_frame_of(chain.n + 1) == "tool0" and chain.tool_frame_of(chain.n) is None
+
+
+def test_a_tree_model_without_tool_names_is_shown_and_explained():
+    """A TreeMDH may leave its tools unnamed: its table says ``(tool)`` (a KeyError
+    before), and the rank notes say "the tool z axis" as for a chain."""
+    from calib.identification.parameters import Kind, Parameter
+    from calib.identification.rank_notes import explain
+    from calib.identification.report import tree_table
+
+    named = from_tree(tree_of("solo12"))
+    model = named.replace(tool_frames=())
+    lines = tree_table(model).splitlines()
+    assert [line.split()[2] for line in lines[-model.n_tools :]] == ["(tool)"] * model.n_tools
+    row = model.tool_rows[2]
+    assert "the tool z axis" in explain(Parameter(row, Kind.BETA), model)
+    text = explain(Parameter(row, Kind.BETA), named)
+    assert f"the z axis of tool {named.tool_frames[2]}" in text

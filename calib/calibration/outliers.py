@@ -11,7 +11,6 @@ from dataclasses import dataclass
 from typing import NamedTuple, TypeVar
 
 import numpy as np
-from scipy.stats import chi
 
 from ..core.words import counted
 from ..exceptions import DataError
@@ -120,6 +119,8 @@ def factor(dims: int) -> float:
     """The outlier factor for errors that are norms of ``dims`` components (``FACTOR``: 3)."""
     if dims == 3:
         return FACTOR
+    from scipy.stats import chi  # 1.5 s to import: only for errors that are no 3-vectors
+
     tail = chi.sf(FACTOR * chi.median(3), 3)
     return float(chi.isf(tail, dims) / chi.median(dims))
 

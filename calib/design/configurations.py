@@ -115,10 +115,26 @@ def _leaders(chain: Chain | Tree, keys: list[str]) -> tuple[str, ...]:
 
 
 def read_configurations(path: str | Path, chain: Chain | Tree) -> np.ndarray:
-    """Read a configurations CSV file (see the module docstring).
+    """Read a configurations CSV file: the joint positions of each configuration.
+
+    The file has one header line naming the chain's joints (URDF names, any order; other columns are
+    ignored, so a measurement CSV is a configurations file too), then one row of joint positions per
+    configuration. A tree's measurement file (a ``tool`` column) and a camera's observations
+    (OBS.csv) give each configuration once. The module ``calib.design.configurations`` has the whole
+    format.
+
+    Args:
+        path: The CSV file (what ``calib design`` writes).
+        chain: The chain or tree the configurations are for (joint names and limits).
+
+    Returns:
+        The joint positions ``(m, n)``, joints in chain order [rad for revolute and
+        continuous joints, m for prismatic ones].
 
     Raises:
-        DataError: The file is missing, unreadable or invalid.
+        DataError: The file is missing or unreadable, a joint column is missing or
+            duplicated, a cell is not a number, a row has the wrong length, there is no row,
+            or a value is far outside its joint limits.
     """
     return read_chains_configurations(path, (chain,))[0]
 

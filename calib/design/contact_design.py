@@ -133,9 +133,22 @@ def contact_candidates(
 def contact_observation_model(
     chain: Chain, cands: ContactCandidates, kind: Contact
 ) -> ObservationModel:
-    """The observation model of a contact campaign (see the module docstring).
+    """The observation model of a contact campaign: the gap rows of the complete model.
 
-    The independent columns are chosen at the candidates (postures on the contact).
+    The columns are the complete model in the contact's frame (every joint placement, the
+    contact frame as the tool, the plane, point or pose as frame -1), reduced to the
+    independent ones at the candidates (postures on the contact): as many as
+    :func:`calib.analyze` counts for the contact with ``params="complete"``. The rows are
+    the kind's gap rows [m and rad]; the predicted errors I and G are the gap's, per unit
+    noise.
+
+    Args:
+        chain: The chain that touches (its nominal model gives the characteristic length).
+        cands: The candidates of the design (:func:`contact_candidates`).
+        kind: The contact kind.
+
+    Returns:
+        The observation model, without markers (``n_markers`` 0).
     """
     model = cands.model
     pset = parameter_set(model, "complete")

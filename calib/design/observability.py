@@ -381,21 +381,24 @@ def reference(model: ObservationModel, q: np.ndarray) -> Reference:
 
 @dataclass(frozen=True)
 class Indices:
-    """Observability indices of K configurations (see the module docstring).
+    """Observability indices of K configurations (sources, scaling: ``calib.design.observability``).
 
     Attributes:
         configs: Number of configurations K.
         parameters: Number of parameters b.
         rank: Numerical rank of ``W_b`` (b when the set identifies every parameter).
-        cond: Condition number (inf when rank-deficient).
-        o1: Borm and Menq's index O1.
-        o3: Smallest singular value O3.
-        o4: Noise amplification index O4.
-        d: D = log det M (-inf when rank-deficient).
-        a: A = trace M^-1 (inf when rank-deficient).
-        i: I: the predicted RMS position error per unit noise on the reference set (inf when
-            rank-deficient, None without a reference set).
-        g: G: its maximum over the reference configurations and points.
+        cond: Condition number ``s_1 / s_b`` of the singular values ``s_1 >= ... >= s_b`` of
+            the scaled ``W_b`` (inf when rank-deficient); lower is better.
+        o1: Borm and Menq's index ``(s_1 ... s_b)^(1/b) / sqrt(K)``; higher is better.
+        o3: Smallest singular value ``s_b``; higher is better.
+        o4: Noise amplification index ``s_b^2 / s_1``; higher is better.
+        d: ``log det M``, ``M = W_b^T W_b`` (-inf when rank-deficient); higher is better.
+        a: ``trace M^-1``, the summed variance of the scaled parameters per unit noise (inf
+            when rank-deficient); lower is better.
+        i: The predicted RMS position error of the calibrated points on the reference set
+            per unit noise (times the noise [mm]: the expected RMS error [mm]; inf when
+            rank-deficient, None without a reference set); lower is better.
+        g: Its maximum over the reference configurations and points.
     """
 
     configs: int

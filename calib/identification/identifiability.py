@@ -217,9 +217,7 @@ class Identifiability:
 
     def row_frame(self, k: int) -> str | None:
         """The fixed frame of row k: the base frame (row 0), a tool's; None for a joint's."""
-        if k == 0:
-            return self.base_frame
-        return dict(zip(self.mdh.tool_rows, self.tool_frames, strict=True)).get(k)
+        return self.base_frame if k == 0 else self.mdh.tool_frame_of(k)
 
     def summary(self) -> str:
         """The text ``calib analyze`` prints (:func:`!report.analysis_text`)."""

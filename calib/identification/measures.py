@@ -57,37 +57,64 @@ class MeasureKind(Protocol):
     """
 
     @property
-    def label(self) -> str: ...  # noqa: D102
+    def label(self) -> str:
+        """The name the kind is given by (``pose``, ``position``, ``x,y,rz``, ``plane``)."""
 
     def __hash__(self) -> int: ...
 
     @property
-    def marker(self) -> tuple[float, float, float]: ...  # noqa: D102
+    def marker(self) -> tuple[float, float, float]:
+        """The point of the tool frame the position rows describe [m]."""
 
     @property
-    def row_names(self) -> tuple[str, ...]: ...  # noqa: D102
+    def row_names(self) -> tuple[str, ...]:
+        """One name per row (``x``, ``rz``, a contact's gap rows)."""
 
     @property
-    def n_rows(self) -> int: ...  # noqa: D102
+    def n_rows(self) -> int:
+        """Rows per configuration."""
 
     @property
-    def is_contact(self) -> bool: ...  # noqa: D102
+    def is_contact(self) -> bool:
+        """True for a contact (a constraint holds, nothing is measured)."""
 
-    def unknown_constants(self, n_markers: int = 1) -> int: ...  # noqa: D102
+    def unknown_constants(self, n_markers: int = 1) -> int:
+        """Constant unknowns the kind brings besides the robot (a frame, markers, a plane)."""
 
-    def residual(  # noqa: D102
+    def residual(
         self, R: np.ndarray, p: np.ndarray, measured: np.ndarray | None = None
-    ) -> np.ndarray: ...
+    ) -> np.ndarray:
+        """Measured minus predicted [m, rad] (a contact: its gap) ``(m, n_rows)``.
 
-    def jacobian_rows(self, W6: np.ndarray, R: np.ndarray) -> np.ndarray: ...  # noqa: D102
+        Args:
+            R: Predicted tool rotations in the base frame ``(m, 3, 3)``.
+            p: Predicted tool origins in the base frame ``(m, 3)`` [m].
+            measured: What was measured (None for a contact).
+        """
 
-    def theoretical_count(  # noqa: D102
+    def jacobian_rows(self, W6: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """The residual's Jacobian rows ``(m, n_rows, k)``.
+
+        Args:
+            W6: The tool's pose-error Jacobian at the marker ``(m, 6, k)`` [m, rad].
+            R: The tool rotations in the base frame ``(m, 3, 3)``.
+        """
+
+    def theoretical_count(
         self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
-    ) -> int | None: ...
+    ) -> int | None:
+        """:meth:`theory`'s count, None where the formula says nothing."""
 
-    def theory(  # noqa: D102
+    def theory(
         self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
-    ) -> int | str: ...
+    ) -> int | str:
+        """The closed-form identifiable count, or why there is none.
+
+        Args:
+            sigma: The joints' types (0 revolute, 1 prismatic) in chain order ``(n,)``.
+            on_axes: Joint rows (1..n) whose axis passes through the measured point.
+            along: Revolute joint rows whose axis lies along the tool's z axis.
+        """
 
 
 @dataclass(frozen=True, eq=False)

@@ -93,7 +93,13 @@ class Projection:
 
 @dataclass(frozen=True, eq=False)
 class Pinhole:
-    """A pinhole camera with OpenCV's distortion model (the module docstring has it).
+    """A pinhole camera with OpenCV's distortion model, as OpenCV's ``projectPoints`` has it.
+
+    A point ``(X, Y, Z)`` [m] in the camera's optical frame (z forward, x right, y down) is seen at
+    the pixel ``u = fx x' + cx``, ``v = fy y' + cy`` [px] (``u`` the column, ``v`` the row, the
+    origin at the centre of the top-left pixel), ``(x', y')`` the distorted ``(X / Z, Y / Z)``. A
+    point at or behind the camera (``Z <=`` :data:`!MIN_DEPTH`) has no pixel. The module
+    ``calib.identification.pinhole`` has the distortion's formulas.
 
     Attributes:
         fx: Focal length along the columns [px], positive, at most :data:`!MAX_PIXELS`.

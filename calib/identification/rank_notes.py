@@ -25,8 +25,8 @@ def explain(p: Parameter, mdh: MDHModel | TreeMDH) -> str:
     prev = "the base z axis (z_-1)" if a == 0 else f"axis {a}"
     this = f"axis {k}"
     if k in mdh.tool_rows:
-        tools = getattr(mdh, "tool_frames", ())
-        this = f"the z axis of tool {tools[mdh.tool_rows.index(k)]}" if tools else "the tool z axis"
+        tool = mdh.tool_frame_of(k) if isinstance(mdh, TreeMDH) else None  # a chain's: unnamed
+        this = f"the z axis of tool {tool}" if tool else "the tool z axis"
     if p.kind is Kind.BETA:
         return (
             f"{p.name}: {prev} is parallel to {this} and the set has no beta there, so a "

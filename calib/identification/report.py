@@ -58,8 +58,8 @@ def _row_label(model: MDHModel | TreeMDH, k: int, frame: str = "") -> str:
         return f"(base{frame})"
     if isinstance(model, MDHModel):
         return f"(tool{frame})"
-    tools = dict(zip(model.tool_rows, model.tool_frames, strict=True))
-    return f"(tool {tools[k]})"
+    name = model.tool_frame_of(k)
+    return f"(tool {name})" if name else f"(tool{frame})"
 
 
 def mdh_table(mdh: MDHModel) -> str:

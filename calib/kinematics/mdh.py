@@ -264,6 +264,10 @@ class MDHModel:
         """Rows of the tool frames, ``(n + 1,)``."""
         return (self.n + 1,)
 
+    def tool_frame_of(self, k: int) -> str | None:
+        """The tool frame row ``k`` stands for (row n+1), or None (another row)."""
+        return self.tool_frame if k == self.n + 1 else None
+
     def kinematics(self, q: np.ndarray) -> Kinematics:
         """Every frame at every configuration, vectorised over configurations.
 
@@ -363,11 +367,16 @@ def _checked_lines(points, directions, sigma, tool):
     """The inputs of :func:`from_lines` as checked arrays (unit directions)."""
     s = real_array(sigma, "sigma", (None,))
     n = len(s)
+    if n == 0:  # before the points, whose count sigma's length sets
+        raise InvalidArgumentError(
+            "a chain has at least one joint: sigma (0 revolute or 1 prismatic per joint) is empty"
+        )
     if not np.all((s == 0) | (s == 1)):
         raise InvalidArgumentError(f"sigma holds 0 (revolute) or 1 (prismatic), got {s.tolist()}")
     bound = urdf_xml.MAX_COORDINATE
-    p = real_array(points, "joint points", (n, 3), bound=bound).reshape(n, 3)
-    u = real_array(directions, "joint directions", (n, 3)).reshape(n, 3)
+    each = f"one per joint of sigma's {n}"
+    p = real_array(points, f"joint points ({each})", (n, 3), bound=bound).reshape(n, 3)
+    u = real_array(directions, f"joint directions ({each})", (n, 3)).reshape(n, 3)
     scale = np.max(np.abs(u), axis=1) if n else np.ones(0)
     zero = np.flatnonzero(scale < urdf_xml.MIN_AXIS_NORM)
     if zero.size:
@@ -391,8 +400,6 @@ _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
 
 def _checked_options(n: int, joint_names, parallel_tol, sign) -> np.ndarray:
     """Check :func:`from_lines`'s options for n joints; the signs ``(n,)`` (default +1)."""
-    if n == 0:
-        raise InvalidArgumentError("a chain has at least one joint: sigma is empty")
     signs = np.ones(n) if sign is None else real_array(sign, "sign", (n,)).reshape(n)
     if not np.all(np.abs(signs) == 1):
         raise InvalidArgumentError(f"sign holds +1 or -1 per joint, got {signs.tolist()}")
@@ -442,8 +449,9 @@ def from_lines(
 
     Raises:
         InvalidArgumentError: Arrays of the wrong shape, not finite, coordinates beyond
-            :data:`~.urdf_xml.MAX_COORDINATE`, a zero direction, sigma not 0 or 1, a sign not
-            +1 or -1, a tool that is not a rigid transform, or a tolerance outside (0, pi/4).
+            :data:`~.urdf_xml.MAX_COORDINATE`, a zero direction, sigma empty or not 0 or 1, a
+            sign not +1 or -1, a tool that is not a rigid transform, or a tolerance outside
+            (0, pi/4).
     """
     return _converted_lines(points, directions, sigma, tool, joint_names, parallel_tol, sign)
 

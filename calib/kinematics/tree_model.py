@@ -130,6 +130,15 @@ class TreeMDH:
         """The tool names joined with ', ' (for one-line reports)."""
         return ", ".join(self.tool_frames)
 
+    def tool_frame_of(self, k: int) -> str | None:
+        """The tool frame row ``k`` stands for (a tool row), or None (another row, or no names).
+
+        ``tool_frames`` is empty or names every tool row (checked on construction).
+        """
+        if k not in self.tool_rows or not self.tool_frames:
+            return None
+        return self.tool_frames[self.tool_rows.index(k)]
+
     def first_child(self, k: int) -> bool:
         """Whether row k is the first child (smallest row) of its antecedent."""
         return int(np.flatnonzero(self.antecedent == self.antecedent[k])[0]) == k
@@ -210,14 +219,13 @@ class TreeMDH:
         A chain's keys plus the antecedent, gamma and b, and the tool of a tool row.
         """
         out = []
-        tools = dict(zip(self.tool_rows, self.tool_frames, strict=False))
         for k in range(len(self.sigma)):
             s = int(self.sigma[k])
             row = {
                 "name": str(k),
                 "antecedent": int(self.antecedent[k]),
                 "joint": self.joint_names[k],
-                "tool": tools.get(k),
+                "tool": self.tool_frame_of(k),
                 "sigma": None if s < 0 else s,
             }
             row.update({a: float(getattr(self, a)[k]) for a in ROW_ARRAYS})

@@ -38,7 +38,8 @@ from ..kinematics.mdh import MDHModel, from_chain
 from ..kinematics.robot import Chain, check_chain
 from ..kinematics.standing import JointReadings
 from .contact_objects import given_objects
-from .csvfile import csv_records, parse_number, read_data_text
+from .csv_text import csv_table
+from .csvfile import parse_number, read_data_text
 from .data import JOINT_PREFIX, DataWarning
 from .joint_columns import column_keys
 from .limits import check_limits, joint_bounds, warn_default_ranges
@@ -159,15 +160,15 @@ def _contact(measure) -> Contact:
 
 
 def _checked_header(
-    cells: list[str], chain: Chain, kind: Contact, src: str, line: int
+    names: list[str], chain: Chain, kind: Contact, src: str, line: int
 ) -> dict[str, int]:
     """Column index of the id and of every chain joint; DataError for a wrong layout.
 
     Joint columns are read as in every calib file (``joint:NAME`` for a joint named like the
     id column, :func:`~.joint_columns.column_keys`): the chain's joints and the robot's
-    other one-degree-of-freedom joints.
+    other one-degree-of-freedom joints. ``names``: the header's (:func:`.csv_text.csv_table`:
+    none empty, none twice).
     """
-    names = [c.strip() for c in cells]
     model = chain.model
     robot_joints = [n for j, n in enumerate(model.names) if j and model.joints[j].nv == 1]
     keys = column_keys(names, (*chain.joint_names, *robot_joints))
@@ -189,8 +190,6 @@ def _checked_header(
         raise DataError(
             src, f"both 'plane' and 'point' columns for a {kind.label} contact", row=line
         )
-    if len(set(keys)) != len(keys):
-        raise DataError(src, "a column name appears twice", row=line)
     missing = [j for j in chain.joint_names if JOINT_PREFIX + j not in keys]
     if missing:
         raise DataError(
@@ -231,18 +230,12 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
     kind = _contact(measure)
     if check_chain(chain, "chain").coupling is not None:
         raise InvalidArgumentError("contact files are read for chains without mimic joints")
-    records = list(csv_records(text, source))
-    if not records:
-        raise DataError(source, "empty file: expected a header line and touches")
-    if len(records) == 1:
-        raise DataError(source, "no touches after the header")
-    check_size(len(records) - 1, MAX_TOUCHES, "touches", source)
-    cols = _checked_header(records[0][1], chain, kind, source, records[0][0])
+    names, records, head = csv_table(text, source, "touches", ())
+    check_size(len(records), MAX_TOUCHES, "touches", source)
+    cols = _checked_header(names, chain, kind, source, head)
     others = tuple(n for n in cols if n != "id" and n not in chain.joint_names)
     ids, q, rows = [], [], []
-    for line, cells in records[1:]:
-        if len(cells) != len(records[0][1]):
-            raise DataError(source, f"{len(cells)} cells for {len(records[0][1])} columns", line)
+    for line, cells in records:
         name = cells[cols["id"]].strip()
         if not name:
             raise DataError(source, "empty id", row=line, column=ID_COLUMNS[kind.label])
@@ -254,7 +247,7 @@ def parse_contacts(text: str, chain: Chain, measure, source: str = "<contacts>")
     check_limits(chain, qa, source, np.array(rows))
     _warn_repeats(qa, ids, rows, source)
     qa.setflags(write=False)
-    readings = _readings(records[1:], others, cols, source)
+    readings = _readings(records, others, cols, source)
     return ContactData(chain.joint_names, qa, tuple(ids), kind, source, tuple(rows), readings)
 
 
@@ -306,11 +299,17 @@ def _readings(records, names: tuple[str, ...], cols: dict[str, int], source: str
 
 
 def read_contacts(path: str | Path, chain: Chain, measure) -> ContactData:
-    """Read and check a contact CSV file (see the module docstring for the format).
+    """Read and check a contact CSV file: the joint positions of each touch.
+
+    One header line, then one row per touch. The robot's other joints (one degree of freedom each)
+    are read too (their positions load the joints of ``elastic``); other columns are ignored with
+    one note, but a coordinate column (``x``, ``y``, ``z``, a quaternion) is an error: a touch
+    measures nothing but the joints. The module ``calib.measurements.contact_campaign`` has the long
+    form.
 
     Args:
-        path: The CSV file: an id column (``plane`` or ``point``, by the kind) and the
-            chain's joint positions [rad or m], one touch per line.
+        path: The CSV file: an id column (``plane`` or ``point``, by the kind) naming what
+            each touch touches, and the chain's joint positions [rad or m], one touch per line.
         chain: The chain that touches (without mimic joints).
         measure: The contact kind, as its label (``plane``, ``plane-point``,
             ``fixed-point``, ``fixed-pose``) or a contact kind object.

@@ -18,7 +18,15 @@ from collections.abc import Sequence
 
 from ..exceptions import DataError
 
-__all__ = ["NUMBER", "csv_records", "csv_table", "is_nan_text", "parse_number", "text_cell"]
+__all__ = [
+    "NUMBER",
+    "csv_records",
+    "csv_table",
+    "header_names",
+    "is_nan_text",
+    "parse_number",
+    "text_cell",
+]
 
 
 NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
@@ -98,6 +106,24 @@ def _check_separator(cells: list[str], src: str, line: int) -> None:
         raise DataError(src, why, row=line)
 
 
+def header_names(cells: list[str], source: str, line: int) -> list[str]:
+    """The names of a header's cells, stripped: none empty, none twice (DataError naming it).
+
+    Every calib CSV of named columns checks its header here (:func:`csv_table`, the
+    measurements read in chunks, the touches).
+    """
+    names = [c.strip() for c in cells]
+    seen: set[str] = set()
+    for j, name in enumerate(names):
+        if not name:
+            why = f"header cell {j + 1} is empty: every column needs a name"
+            raise DataError(source, why, row=line)
+        if name in seen:
+            raise DataError(source, "duplicate column", row=line, column=name)
+        seen.add(name)
+    return names
+
+
 def csv_table(text: str, source: str, what: str, required: Sequence[str]):
     """The header's names, the other records ``(line, cells)`` and the header's line; checked.
 
@@ -110,12 +136,7 @@ def csv_table(text: str, source: str, what: str, required: Sequence[str]):
     if not records:
         raise DataError(source, f"empty file: expected a header line and {what}")
     line, cells = records[0]
-    names = [c.strip() for c in cells]
-    for j, name in enumerate(names):
-        if not name:
-            raise DataError(source, f"header cell {j + 1} is empty", row=line)
-        if names.index(name) != j:
-            raise DataError(source, "duplicate column", row=line, column=name)
+    names = header_names(cells, source, line)
     for column in required:
         if column not in names:
             raise DataError(source, "missing column", row=line, column=column)

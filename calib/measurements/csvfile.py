@@ -41,7 +41,7 @@ from ..kinematics.robot import Chain, check_robot
 from ..kinematics.so3 import matrix_to_quaternion, rotation_matrix, rpy_to_matrix
 from ..kinematics.tree import Tree
 from . import marker_set
-from .csv_text import NUMBER, csv_records, parse_number
+from .csv_text import NUMBER, csv_records, header_names, parse_number
 from .data import (
     JOINT_PREFIX,
     MAX_COORDINATE,
@@ -254,16 +254,7 @@ def _joint_keys(chain: Chain | Tree) -> set[str]:
 
 def _header(cells: list[str], chain: Chain | Tree, columns: Columns, src: str, line: int):
     """Validate the header: column names, position columns, orientation format and columns."""
-    names = [c.strip() for c in cells]
-    seen: set[str] = set()
-    for j, name in enumerate(names):
-        if not name:
-            raise DataError(
-                src, f"header cell {j + 1} is empty: every column needs a name", row=line
-            )
-        if name in seen:
-            raise DataError(src, "duplicate column", row=line, column=name)
-        seen.add(name)
+    names = header_names(cells, src, line)
     keys = column_keys(names, (*chain.variable_names, *follower_names(chain)))
     for name in chain.variable_names:
         if JOINT_PREFIX + name not in keys:
@@ -339,7 +330,9 @@ def parse_measurements(
     columns: Columns | None = None,
     path: str | None = None,
 ) -> Measurements:
-    """Parse and validate CSV text (see the module docstring for the format).
+    """Parse and validate the text of a measurement CSV: joint positions and measured points.
+
+    The format is :func:`read_measurements`'s.
 
     Args:
         text: The CSV content.
@@ -527,7 +520,15 @@ def _marker_set(position: np.ndarray, src: str, lines) -> tuple[np.ndarray, np.n
 def read_measurements(
     path: str | Path, chain: Chain | Tree, columns: Columns | None = None
 ) -> Measurements:
-    """Read and validate a measurement CSV file (see the module docstring for the format).
+    """Read and validate a measurement CSV file: joint positions and measured points.
+
+    One header line, then one row per configuration, columns in any order: one column per
+    independent joint of the chain, named as the URDF joint [rad or m]; the measured point
+    ``x, y, z`` (``x1, y1, z1``, ``x2, ...`` for several) [m, or ``columns.units``]; for a
+    pose, the tool frame's orientation in the measurement frame (``qx, qy, qz, qw`` scalar
+    last, or the format ``columns`` names); a tree's file adds a ``tool`` column. A joint
+    named like a measurement column is written ``joint:NAME``. The module
+    ``calib.measurements.csvfile`` has the long form.
 
     Args:
         path: The CSV file.

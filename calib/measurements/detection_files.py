@@ -71,11 +71,22 @@ class ImageJoints:
 
 
 def read_image_joints(path: str | Path) -> ImageJoints:
-    """Read ``JOINTS.csv`` (see the module docstring).
+    """Read ``JOINTS.csv``: the joint readings taken with each image.
+
+    One header line, one row per image, comma separated: an ``image`` column (the image's
+    file, its name or its path relative to the file's folder), then one column per joint,
+    named as the URDF joint.
+
+    Args:
+        path: The ``JOINTS.csv`` file.
+
+    Returns:
+        The images and their joint readings [rad or m], in the file's order.
 
     Raises:
         DataError: Missing or unreadable, no ``image`` column, no joint column, a column
-            named twice, an empty image cell, a joint reading that is not a finite number.
+            named twice, a row of the wrong length, an empty image cell, a joint reading
+            that is not a finite number.
     """
     source = str(path)
     records = csv_records(read_data_text(path), source)

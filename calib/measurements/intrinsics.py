@@ -151,10 +151,19 @@ class Intrinsics:
 
 
 def read_intrinsics(path: str | Path) -> Intrinsics:
-    """Read and check an intrinsics file (see the module docstring for the formats).
+    """Read and check a camera's intrinsics file, as OpenCV's FileStorage writes it.
+
+    The keys read: ``image_width``, ``image_height`` [px]; ``camera_matrix``
+    ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` [px] (an ``!!opencv-matrix``, the same keys
+    without the tag, 9 numbers or 3 rows); ``distortion_coefficients``, 4, 5, 8, 12 or 14 in
+    OpenCV's order. Other keys are ignored. A text starting with ``{`` is read as JSON, any
+    other as YAML. The module ``calib.measurements.intrinsics`` has the long form.
 
     Args:
         path: The file: OpenCV's FileStorage YAML, plain YAML or JSON.
+
+    Returns:
+        The intrinsics (the image's size and the pinhole camera), ``path`` resolved.
 
     Raises:
         DataError: The file is missing, unreadable or too large, or its content is not valid

@@ -248,9 +248,17 @@ def _warn_ignored(names: Sequence[str], source: str, what: str) -> None:
 
 
 def parse_target(text: str, source: str = "<text>", path: str | None = None) -> Target:
-    """A target from CSV text (see the module docstring for the format).
+    """A target from the text of a target CSV file: points fixed to the robot's links.
 
-    ``source`` names it in messages; ``path``: the file read, resolved (:func:`read_target`).
+    The format is :func:`read_target`'s.
+
+    Args:
+        text: The CSV content.
+        source: Name of the data in messages (a file path).
+        path: The file read, resolved (:func:`read_target`), or None.
+
+    Returns:
+        The target's points, in the file's order.
 
     Raises:
         DataError: A missing column, a bad cell, a point given twice, a zero normal, or a
@@ -319,10 +327,18 @@ def _check_metres(position: np.ndarray, link, source: str, lines: list[int]) -> 
 
 
 def read_target(path: str | Path) -> Target:
-    """Read and check a target file (see the module docstring for the format).
+    """Read and check a target CSV file: points fixed to the robot's links.
+
+    One header line, then one row per point: ``point`` (its id, text), ``x``, ``y``, ``z`` [m], the
+    point in its link's frame; optionally ``link`` (the link it is fixed to; without the column
+    every point is on the tool) and ``nx``, ``ny``, ``nz`` (the outward normal of its surface,
+    scaled to unit length). The module ``calib.measurements.pixels`` has the long form.
 
     Args:
         path: The target file.
+
+    Returns:
+        The target's points, in the file's order, ``path`` resolved.
 
     Raises:
         DataError: The file is missing or unreadable, or its content is not valid
@@ -399,7 +415,9 @@ def parse_observations(
     target: Target | None = None,
     source: str = "<text>",
 ) -> PixelObservations:
-    """Pixel observations from CSV text (see the module docstring for the format).
+    """Pixel observations from the text of an observation CSV (``OBS.csv``).
+
+    The format is :func:`read_observations`'s.
 
     Args:
         text: The CSV content.
@@ -500,7 +518,13 @@ def read_observations(
     cameras: Mapping[str, Intrinsics],
     target: Target | None = None,
 ) -> PixelObservations:
-    """Read and check an observation file (see the module docstring for the format).
+    """Read and check an observation CSV file (``OBS.csv``): where cameras see target points.
+
+    One header line, then one row per point seen in an image: one column per joint of ``joints``
+    [rad or m] (``joint:NAME`` for a joint named like another column), ``camera`` (a name of
+    ``cameras``), ``point`` (a target point's id) and ``u``, ``v`` [px] (the column and the row, the
+    centre of the top-left pixel at ``(0, 0)``, as OpenCV has them). The module
+    ``calib.measurements.pixels`` has the long form.
 
     Args:
         path: The observation CSV file.
