@@ -502,7 +502,7 @@ def optimal_subset(
     if k * r < b:
         raise InvalidArgumentError(
             f"{k} configurations give {k * r} rows for {b} parameters: choose at least "
-            f"{-(-b // r)} configurations"
+            f"{least_configurations(b, r)} configurations"
         )
     if criterion == "I" and (L is None or L.shape != (b, b)):
         raise InvalidArgumentError("criterion I needs the reference information matrix")
@@ -522,6 +522,11 @@ def optimal_subset(
         if not made:
             break
     return ExchangeResult(tuple(state.design), tuple(greedy), exchanges, sweeps)
+
+
+def least_configurations(parameters: int, rows: int) -> int:
+    """The fewest configurations whose ``rows`` rows each reach ``parameters`` rows."""
+    return -(-parameters // rows)
 
 
 def least_i(
@@ -582,6 +587,7 @@ __all__ = [
     "ExchangeResult",
     "ExchangeState",
     "greedy_start",
+    "least_configurations",
     "least_i",
     "optimal_subset",
 ]
