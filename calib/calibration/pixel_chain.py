@@ -473,8 +473,11 @@ def pixel_count(
     ``notes`` (a count that may be low, postures drawn again).
 
     Raises:
-        InvalidArgumentError: No point seen at any posture (drawn: at the last draw).
+        InvalidArgumentError: No point seen at any posture (drawn: at the last draw);
+            ``joints`` without ``q`` or ``q`` without ``joints``; a bad count or seed.
     """
+    if (joints is None) != (q is None):
+        raise InvalidArgumentError("pixel_count: give joints and q together (q's columns)")
     if q is not None:
         found = _count_at(chains, cameras, target, joints, q, params)
         low = [] if _enough(found) else [_low(found, f"{len(q)} postures", "more postures")]

@@ -11,6 +11,7 @@ import shlex
 from pathlib import Path
 
 from ..calibration.analysis import analyze
+from ..core.checks import least_configurations
 from ..core.choices import DEFAULT_SET, PARAMETER_SETS, VERDICT_SET
 from ..core.progress import terminal
 from ..core.words import counted
@@ -126,8 +127,6 @@ def _next_step(args: argparse.Namespace, res) -> str:
     markers free make up what the paper set misses; a contact's or a tree's design and
     calibration fit the complete model).
     """
-    from ..design.exchange import least_configurations
-
     kind, robot = res.measurement, shlex.join(robot_words(args))
     least = least_configurations(res.n_complete, kind.n_rows * len(res.tool_frames))
     if kind.is_contact:

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.checks import check_count, real_array, shown
+from ..core.checks import check_count, least_configurations, real_array, shown
 from ..core.choices import EXCHANGE_CRITERIA
 from ..core.progress import steps
 from ..exceptions import InvalidArgumentError
@@ -524,11 +524,6 @@ def optimal_subset(
     return ExchangeResult(tuple(state.design), tuple(greedy), exchanges, sweeps)
 
 
-def least_configurations(parameters: int, rows: int) -> int:
-    """The fewest configurations whose ``rows`` rows each reach ``parameters`` rows."""
-    return -(-parameters // rows)
-
-
 def least_i(
     J: np.ndarray, k: int, L: np.ndarray, tolerance: float = 1e-3, iterations: int = 5000
 ) -> float:
@@ -587,7 +582,6 @@ __all__ = [
     "ExchangeResult",
     "ExchangeState",
     "greedy_start",
-    "least_configurations",
     "least_i",
     "optimal_subset",
 ]
