@@ -18,6 +18,7 @@ import pytest
 from pinref import pin_config, pin_frame
 from pixel_scorer import moved_model, numerical_rank, seen_pixels, textbook_pixels
 
+import calib
 from calib import load_chain
 from calib.cli import main
 
@@ -138,6 +139,8 @@ def test_a_python_caller_gets_the_generic_count(files):
     own = pixel_count((chain,), (camera,), target, chain.joint_names, q)
     assert own["postures"] == 5 and own["n_base"] < found["n_base"]
     assert "only 5 of 100 postures see the target: the count may be low" in own["notes"][0]
+    with pytest.raises(calib.InvalidArgumentError, match=r"pixel_chain\.pixel_count"):
+        calib.analyze(chain, measure="pixels")  # it said: unknown measure 'pixels'
 
 
 def test_the_next_step_simulates_enough_seeing_postures_and_calibrates(
