@@ -165,7 +165,8 @@ def analyze(
 
     Raises:
         InvalidArgumentError: A problem given with other arguments; a bad argument;
-            ``measure="pixels"`` (a camera's count: :func:`~.pixel_chain.pixel_count`).
+            ``measure="pixels"`` (a camera's count:
+            :func:`~calib.calibration.pixel_chain.pixel_count`).
         DataError: A problem's rows that cannot be registered (too few, not its chain's).
     """
     problem = sys.modules.get(f"{__package__}.problem")  # loaded if a Problem exists

@@ -458,19 +458,27 @@ def pixel_count(
 ) -> dict:
     """The unknowns cameras' pixels determine (``n_base``): what ``calib analyze`` counts.
 
-    ``chains``: each camera's chain to the target's tool (a target on several links: a chain
-    per link, the camera given once per chain); ``cameras``: each chain's, placed;
-    ``target``: its points in the tool frame [m]; ``params`` ``complete``: the target's
-    mounting is an unknown too.
+    Without ``q``: the generic count, at ``configs`` random postures, then twice as many (the
+    same seed: the first ones kept) until the seeing postures could determine
+    :data:`!COUNT_MARGIN` (2) times the unknowns (:data:`!POSTURE_UNKNOWNS`, 6, each; 2 per
+    pixel) and the count no longer grows, at most :data:`!MAX_DOUBLINGS` (5) times: a count
+    on too few seeing postures is low. With ``q``: the count at those postures.
 
-    Without ``q``: the generic count, at ``configs`` random postures (``seed``), then twice
-    as many (the same seed: the first ones kept) until the seeing postures could determine
-    :data:`COUNT_MARGIN` times the unknowns (:data:`POSTURE_UNKNOWNS` each, 2 per pixel) and
-    the count no longer grows, at most :data:`MAX_DOUBLINGS` times: a count on too few
-    seeing postures is low. With ``q`` (``joints``: its columns) [rad or m]: the count at
-    those postures. Returns ``n_base`` (the rank on the nominal robot), ``n_unknowns``, the
-    rows, postures and cameras counted, ``configs`` (the postures drawn or given) and
-    ``notes`` (a count that may be low, postures drawn again).
+    Args:
+        chains: Each camera's chain to the target's tool (a target on several links: a chain
+            per link, the camera given once per chain).
+        cameras: Each chain's camera, placed.
+        target: Its points in the tool frame [m].
+        joints: ``q``'s columns (the joints of the chains), with ``q``.
+        q: Postures ``(m, n)`` [rad or m], or None: drawn.
+        params: ``complete``: the target's mounting is an unknown too.
+        configs: Random postures drawn first (without ``q``).
+        seed: Seed of the draws.
+
+    Returns:
+        ``n_base`` (the rank on the nominal robot), ``n_unknowns``, the ``rows``,
+        ``postures`` and ``cameras`` counted, ``configs`` (the postures drawn or given) and
+        ``notes`` (a count that may be low, postures drawn again): ``--json``'s document.
 
     Raises:
         InvalidArgumentError: No point seen at any posture (drawn: at the last draw);

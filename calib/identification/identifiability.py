@@ -394,8 +394,7 @@ def analyze_model(
     col_norm = np.linalg.norm(W, axis=0)
     zero = tuple(names[i] for i in others if col_norm[i] <= tau)
     t2 = time.perf_counter()
-    Wc = complete()
-    n_complete, _ = numerical_rank(pivoted_diagonal(Wc), n_rows)
+    n_complete, _ = numerical_rank(pivoted_diagonal(complete()), n_rows)
     on_axes = axes_through_point(mdh, measurement)
     theory = theory_of(mdh, measurement, on_axes)  # the count, or why there is none
     missing = missing_errors(mdh, W_all, pset, extras, kept, n_complete, n_rows)
