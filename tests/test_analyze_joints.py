@@ -199,3 +199,43 @@ def test_a_tree_measured_in_pose_is_sent_to_its_positions(capsys, tmp_path, monk
     design, least, _ = next_step(capsys, shlex.split(found.group(1))[1:])
     assert main([*design, "--configs", str(least - 1), "--quiet", "--candidates", "200"]) == 2
     assert f"choose at least {least} configurations" in capsys.readouterr().err
+
+
+MARKERS = {
+    "ur5 3 points": ["ur5", "--markers", "3"],
+    "tiago pose": ["tiago", "--markers", "2", "--measure", "pose"],  # the torso lift first
+}
+
+
+@pytest.mark.parametrize("case", MARKERS)
+def test_markers_name_the_joint_pinocchio_puts_on_each_row(capsys, case):
+    """``analyze --markers K``: each MDH parameter's joint (JSON ``identifiable``) is the one
+    whose axis Pinocchio puts on its row's z axis (the rows the count leaves out named by
+    analyze's own table, itself checked above); the text lists each joint's parameters."""
+    args = MARKERS[case]
+    doc = json.loads(run(capsys, ["show", args[0], "--json"]))
+    found = json.loads(run(capsys, ["analyze", *args, "--json"]))
+    entries = found["identifiable"]
+    assert [e["name"] for e in entries] == found["parameters"]
+    named = {e["row"]: e["joint"] for e in entries if e["joint"] is not None}
+    assert len(named) >= 5
+    every = json.loads(run(capsys, ["analyze", args[0], "--json"]))["parameters"]
+    joints = {e["row"]: e["joint"] for e in every if e["joint"] is not None} | named
+    for seed in range(3):
+        check_rows_on_their_joints(doc, joints, seed)
+    first, last = sorted(named)[0], sorted(named)[-1]
+    with pytest.raises(AssertionError):  # a markers' name on the wrong row is seen
+        check_rows_on_their_joints(doc, joints | {first: named[last], last: named[first]}, 0)
+    for e in entries:
+        row = re.fullmatch(r"[a-z]+(\d+)", e["name"])
+        assert e["row"] == (None if row is None else int(row.group(1)))
+        if e["name"].startswith("frame."):
+            assert e["frame"] == "measurement"
+    lines = run(capsys, ["analyze", *args]).splitlines()[1:]
+    said = {}
+    for line in lines:
+        label, names = re.fullmatch(r"  (\S+(?: \S+)?) +(\S.*)", line).groups()
+        said[label] = names.split(", ")
+    for joint in set(named.values()):
+        assert said[joint] == [e["name"] for e in entries if e["joint"] == joint]
+    assert said["(measurement frame)"] == [n for n in found["parameters"] if n[:6] == "frame."]

@@ -24,6 +24,7 @@ from calib import CalibError, Measurement
 from calib.calibration import residual_stats
 from calib.calibration.engine import calibrate_contact_chains
 from calib.calibration.entry import calibrate_contacts
+from calib.calibration.pixel_chain import PixelCamera, pixel_count
 from calib.identification.identifiability import analyze_model
 from calib.identification.jacobian import complete_jacobian, identification_jacobian
 from calib.identification.parameters import (
@@ -68,6 +69,7 @@ TOUCHES = calib.simulate_contacts(CHAIN, 20, seed=0).data
 CONFIGS = CHAIN.random_configurations(10, seed=0)
 INTRINSICS = Intrinsics(640, 480, Pinhole(600.0, 600.0, 320.0, 240.0))
 TARGET = Target(("a", "b", "c"), np.eye(3) * 0.05)
+CAMERA = PixelCamera("cam", "base_link", INTRINSICS, np.eye(4))
 
 
 def _cases():
@@ -362,6 +364,16 @@ def _third_round_cases():
         "sweep.marker_count chain=str": lambda: marker_count("ur5", 3),
         "sweep.marker_count a tree": lambda: marker_count(TREE, 3),
         "sweep.marker_count markers=text": lambda: marker_count(CHAIN, "3"),
+        # the generic pixel count (calib analyze --measure pixels) from Python
+        "pixel_chain.pixel_count configs=0": lambda: pixel_count(
+            (CHAIN,), (CAMERA,), TARGET, configs=0
+        ),
+        "pixel_chain.pixel_count seed=-1": lambda: pixel_count(
+            (CHAIN,), (CAMERA,), TARGET, seed=-1
+        ),
+        "pixel_chain.pixel_count q without joints": lambda: pixel_count(
+            (CHAIN,), (CAMERA,), TARGET, q=Q
+        ),
     }
 
 

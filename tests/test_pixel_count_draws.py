@@ -9,6 +9,8 @@ central differences of Pinocchio's placements projected by a textbook pinhole
 from __future__ import annotations
 
 import json
+import re
+import shlex
 
 import numpy as np
 import pinocchio as pin
@@ -16,6 +18,7 @@ import pytest
 from pinref import pin_config, pin_frame
 from pixel_scorer import moved_model, numerical_rank, seen_pixels, textbook_pixels
 
+import calib
 from calib import load_chain
 from calib.cli import main
 
@@ -117,3 +120,51 @@ def test_too_few_seeing_postures_are_said_with_what_to_do(capsys, files):
     assert len(notes) == 1
     assert "of 64 random postures see the target: the count may be low" in notes[0]
     assert "give more --configs" in notes[0]
+
+
+def test_a_python_caller_gets_the_generic_count(files):
+    """``pixel_count`` without postures draws as ``calib analyze`` does (it counted 25 at the
+    100 postures a caller drew, 34 is right); at a caller's own 100 postures it says the count
+    may be low."""
+    from calib import PixelCamera, read_intrinsics, read_target
+    from calib.calibration.pixel_chain import pixel_count
+
+    chain = load_chain("panda", base="panda_hand", tool="panda_link0")
+    camera = PixelCamera("cam", "panda_hand", read_intrinsics(files / "intr.yaml"), CAMERA)
+    target = read_target(files / "board.csv")
+    found = pixel_count((chain,), (camera,), target)
+    assert found["n_base"] == _fd_rank() and found["n_unknowns"] == 48
+    assert found["configs"] > 100 and "5 of the first 100" in found["notes"][0]
+    q = chain.random_configurations(100, 0)
+    own = pixel_count((chain,), (camera,), target, chain.joint_names, q)
+    assert own["postures"] == 5 and own["n_base"] < found["n_base"]
+    assert "only 5 of 100 postures see the target: the count may be low" in own["notes"][0]
+    with pytest.raises(calib.InvalidArgumentError, match=r"pixel_chain\.pixel_count"):
+        calib.analyze(chain, measure="pixels")  # it said: unknown measure 'pixels'
+
+
+def test_the_next_step_simulates_enough_seeing_postures_and_calibrates(
+    capsys, files, tmp_path, monkeypatch
+):
+    """The closing line's simulate command draws the postures the count settled on: it sees
+    the board at about as many postures as the line says, and its OBS.csv is one the
+    line's calibrate command calibrates."""
+    monkeypatch.chdir(tmp_path)
+    code, out, err = _analyze(capsys, files)
+    assert code == 0, err
+    found = re.fullmatch(
+        r"next: record the pixels .* \(calib (simulate .*) simulates them: (\d+) of the (\d+) "
+        r"postures see it\), then calib (calibrate .*)",
+        out.splitlines()[-1],
+    )
+    assert found is not None, out
+    simulate, seeing, calibrate = shlex.split(found.group(1)), found.group(2), found.group(4)
+    assert simulate[simulate.index("--configs") + 1] == found.group(3)
+    assert main(simulate) == 0
+    said = capsys.readouterr().out
+    seen = int(re.search(r"in (\d+) of \d+ postures", said).group(1))
+    assert abs(seen - int(seeing)) <= 3 and seen >= 16  # the true robot is perturbed
+    words = shlex.split(calibrate)
+    words[words.index("--data") + 1] = "obs.csv"
+    assert main(words) == 0, capsys.readouterr().err
+    assert "accepted" in capsys.readouterr().out

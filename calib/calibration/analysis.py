@@ -164,7 +164,9 @@ def analyze(
         :class:`~calib.calibration.analysis.ProblemAnalysis`.
 
     Raises:
-        InvalidArgumentError: A problem given with other arguments; a bad argument.
+        InvalidArgumentError: A problem given with other arguments; a bad argument;
+            ``measure="pixels"`` (a camera's count:
+            :func:`~calib.calibration.pixel_chain.pixel_count`).
         DataError: A problem's rows that cannot be registered (too few, not its chain's).
     """
     problem = sys.modules.get(f"{__package__}.problem")  # loaded if a Problem exists
@@ -177,4 +179,9 @@ def analyze(
         return _count(robot)
     if problem is not None and isinstance(robot, problem.Term):
         raise InvalidArgumentError("a term is analysed in its problem: analyze(Problem((term,)))")
+    if isinstance(measure, str) and measure == "pixels":
+        raise InvalidArgumentError(
+            "calib.analyze takes no camera: a camera's pixels are counted by "
+            "calib.calibration.pixel_chain.pixel_count(chains, cameras, target)"
+        )
     return identifiability.analyze(robot, base, tool, measure, marker, params, configs, seed)

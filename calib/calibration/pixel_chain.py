@@ -14,12 +14,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.choices import DEFAULT_CONFIGS
 from ..exceptions import InvalidArgumentError
 from ..identification.pinhole import Pinhole
 from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.so3 import left_jacobian, rotation_matrix, skew
 from ..measurements.cameras import PixelCamera, PixelRows, pixel_rows
+from ..measurements.limits import warn_default_ranges
 from ..measurements.pixel_simulation import simulate_cameras
 from ..measurements.pixels import PixelObservations, Target
 from . import term_checks, validation
@@ -39,6 +41,7 @@ __all__ = [
     "camera_step",
     "check_pixels",
     "free_columns",
+    "joint_postures",
     "pixel_block",
     "pixel_count",
     "pixel_jacobian",
@@ -418,17 +421,128 @@ def _stacked(names, cameras, rows, chains, placements: Placements, target, what)
     return np.concatenate(blocks)
 
 
-def pixel_count(
-    chains, cameras: tuple[PixelCamera, ...], target: Target, joints, q, params: str | None
-) -> dict:
-    """The unknowns cameras' pixels determine (``n_base``) at postures ``q`` [rad or m].
+POSTURE_UNKNOWNS = 6
+"""The most one posture's pixels of a camera determine: the target's placement in the camera
+(2 per pixel below 3 pixels)."""
 
-    ``chains``: each camera's chain to the target's tool (a target on several links: a chain
-    per link, the camera given once per chain); ``cameras``: each chain's, placed;
-    ``target``: its points in the tool frame [m]; ``joints``: ``q``'s columns; ``params``
-    ``complete``: the target's mounting is an unknown too. Returns ``n_base`` (the rank on the
-    nominal robot), ``n_unknowns`` and the rows, postures and cameras counted.
+COUNT_MARGIN = 2
+"""The generic count is made at postures whose pixels could determine this many times the
+unknowns."""
+
+MAX_DOUBLINGS = 5
+"""Times :func:`pixel_count` doubles its random postures (at most 32 times ``configs``)."""
+
+
+def joint_postures(chains, drawn) -> tuple[tuple[str, ...], np.ndarray]:
+    """Every joint of the chains and their postures ``(m, n)`` [rad or m].
+
+    ``drawn``: each chain's postures ``(m, n_chain)``; a joint of several chains takes the
+    first chain's values.
     """
+    joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
+    q = np.zeros((len(drawn[-1]), len(joints)))
+    for chain, own in reversed(list(zip(chains, drawn, strict=True))):
+        q[:, [joints.index(j) for j in chain.joint_names]] = own
+    return joints, q
+
+
+def pixel_count(
+    chains,
+    cameras: tuple[PixelCamera, ...],
+    target: Target,
+    joints=None,
+    q=None,
+    params: str | None = None,
+    configs: int = DEFAULT_CONFIGS,
+    seed: int = 0,
+) -> dict:
+    """The unknowns cameras' pixels determine (``n_base``): what ``calib analyze`` counts.
+
+    Without ``q``: the generic count, at ``configs`` random postures, then twice as many (the
+    same seed: the first ones kept) until the seeing postures could determine
+    :data:`!COUNT_MARGIN` (2) times the unknowns (:data:`!POSTURE_UNKNOWNS`, 6, each; 2 per
+    pixel) and the count no longer grows, at most :data:`!MAX_DOUBLINGS` (5) times: a count
+    on too few seeing postures is low. With ``q``: the count at those postures.
+
+    Args:
+        chains: Each camera's chain to the target's tool (a target on several links: a chain
+            per link, the camera given once per chain).
+        cameras: Each chain's camera, placed.
+        target: Its points in the tool frame [m].
+        joints: ``q``'s columns (the joints of the chains), with ``q``.
+        q: Postures ``(m, n)`` [rad or m], or None: drawn.
+        params: ``complete``: the target's mounting is an unknown too.
+        configs: Random postures drawn first (without ``q``).
+        seed: Seed of the draws.
+
+    Returns:
+        ``n_base`` (the rank on the nominal robot), ``n_unknowns``, the ``rows``,
+        ``postures`` and ``cameras`` counted, ``configs`` (the postures drawn or given) and
+        ``notes`` (a count that may be low, postures drawn again): ``--json``'s document.
+
+    Raises:
+        InvalidArgumentError: No point seen at any posture (drawn: at the last draw);
+            ``joints`` without ``q`` or ``q`` without ``joints``; a bad count or seed.
+    """
+    if (joints is None) != (q is None):
+        raise InvalidArgumentError("pixel_count: give joints and q together (q's columns)")
+    if q is not None:
+        found = _count_at(chains, cameras, target, joints, q, params)
+        low = [] if _enough(found) else [_low(found, f"{len(q)} postures", "more postures")]
+        return found | {"configs": len(q), "notes": low}
+    return _drawn_count(chains, cameras, target, params, configs, seed)
+
+
+def _drawn_count(chains, cameras, target: Target, params, configs: int, seed: int) -> dict:
+    """:func:`pixel_count` at random postures, drawn again until the count settles."""
+    counts: list[dict] = []
+    m, first, settled = configs, 0, False
+    for doubling in range(MAX_DOUBLINGS + 1):
+        if doubling == 0:
+            for chain in chains:
+                warn_default_ranges(chain, "give your own configurations")
+        joints, q = joint_postures(chains, [c.random_configurations(m, seed) for c in chains])
+        try:
+            found = _count_at(chains, cameras, target, joints, q, params)
+        except InvalidArgumentError:  # no point seen: more postures, else the error
+            if doubling == MAX_DOUBLINGS:
+                raise
+            m *= 2
+            continue
+        settled = _enough(found) and (not counts or found["n_base"] == counts[-1]["n_base"])
+        counts.append(found)
+        first = found["postures"] if doubling == 0 else first
+        if settled:
+            break
+        m *= 2
+    notes = [] if settled else [_low(found, f"{len(q)} random postures", "more --configs")]
+    if settled and len(counts) > 1:
+        notes.append(
+            f"{first} of the first {configs} random postures "
+            f"{'sees' if first == 1 else 'see'} the target: counted at {len(q)} "
+            f"({found['postures']} seeing), where the count stops growing"
+        )
+    return found | {"configs": len(q), "notes": notes}
+
+
+def _enough(found: dict) -> bool:
+    """Whether the seeing postures could determine :data:`COUNT_MARGIN` times the unknowns."""
+    seeing = min(POSTURE_UNKNOWNS * found["postures"], 2 * found["rows"])
+    return seeing >= COUNT_MARGIN * found["n_unknowns"]
+
+
+def _low(found: dict, postures: str, more: str) -> str:
+    """The note of a count at too few seeing ``postures`` (what to give: ``more``)."""
+    wanted = -(-COUNT_MARGIN * found["n_unknowns"] // POSTURE_UNKNOWNS)
+    return (
+        f"only {found['postures']} of {postures} see the target: the count may be low (it "
+        f"wants about {wanted} seeing postures and a count that stops growing); give {more}, "
+        "or a camera placement that sees the target more often"
+    )
+
+
+def _count_at(chains, cameras, target: Target, joints, q, params: str | None) -> dict:
+    """:func:`pixel_count` at postures ``q``."""
     views = tuple((camera.name, camera.placement, camera.intrinsics) for camera in cameras)
     obs = simulate_cameras(chains, views, target, joints, q)
     placements = Placements.of(tuple(chains))

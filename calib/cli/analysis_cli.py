@@ -11,6 +11,7 @@ import shlex
 from pathlib import Path
 
 from ..calibration.analysis import analyze
+from ..core.checks import least_configurations
 from ..core.choices import DEFAULT_SET, PARAMETER_SETS, VERDICT_SET
 from ..core.progress import terminal
 from ..core.words import counted
@@ -29,6 +30,7 @@ from .common import (
     command_parser,
     given_options,
     print_json,
+    robot_words,
     tool_arg,
     write_outputs,
 )
@@ -118,14 +120,6 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     return 0
 
 
-def _robot_words(args: argparse.Namespace) -> str:
-    """The robot, ``--base`` and ``--tool`` as the user gave them (quoted for a shell)."""
-    words = [args.robot] + (["--base", args.base] if args.base else [])
-    for tool in args.tool or ():
-        words += ["--tool", tool]
-    return shlex.join(words)
-
-
 def _next_step(args: argparse.Namespace, res) -> str:
     """The closing line of ``calib analyze``: plan the postures, measure (or touch), calibrate.
 
@@ -133,8 +127,8 @@ def _next_step(args: argparse.Namespace, res) -> str:
     markers free make up what the paper set misses; a contact's or a tree's design and
     calibration fit the complete model).
     """
-    kind, robot = res.measurement, _robot_words(args)
-    least = -(-res.n_complete // (kind.n_rows * len(res.tool_frames)))
+    kind, robot = res.measurement, shlex.join(robot_words(args))
+    least = least_configurations(res.n_complete, kind.n_rows * len(res.tool_frames))
     if kind.is_contact:
         measure = f" --measure {kind.label}"
         return (
@@ -191,7 +185,34 @@ def _analyze_terms(args: argparse.Namespace) -> int:
         print_json(res.to_dict())
     else:
         print(res.summary())
+        step = _terms_next_step(args)
+        if step is not None:
+            print(step)
     return 0
+
+
+def _terms_next_step(args: argparse.Namespace) -> str | None:
+    """The closing line of ``analyze --term``: calibrate these terms (the same words).
+
+    One term is calibrate's ``--base``, ``--tool`` and ``--data`` (a pixels term: its camera's
+    ``--measure pixels``); one loop term: None (a loop is a term beside others).
+    """
+    words = ["calibrate", args.robot]
+    if len(args.term) > 1:
+        words += [w for term in args.term for w in ("--term", *term)]
+    elif args.term[0][0] == "pixels":
+        words += ["--measure", "pixels", "--tool", args.term[0][2], "--data", args.term[0][3]]
+    elif args.term[0][0] != "loop":
+        kind, base, tool, data = args.term[0][:4]
+        words += ["--measure", kind, "--base", base, "--tool", tool, "--data", data]
+    else:
+        return None
+    if any(t[0] == "pixels" for t in args.term):
+        words += [w for camera in args.camera or () for w in ("--camera", *camera)]
+        words += ["--target", args.target] if args.target else []
+        words += ["--params", args.params] if args.params else []
+    words += ["--out", "calibrated.urdf"]
+    return f"next: calib {shlex.join(map(str, words))} fits what the data determine"
 
 
 def _analyze_markers(args: argparse.Namespace) -> int:
@@ -206,6 +227,7 @@ def _analyze_markers(args: argparse.Namespace) -> int:
     count = marker_count(chain, args.markers, args.measure, args.configs, args.seed)
     names, held, theory = count.names, count.held, count.theory
     notes = [held_note(held, None)] if held else []
+    entries = _marker_entries(chain, names)
     if args.json:
         print_json(
             {
@@ -215,6 +237,7 @@ def _analyze_markers(args: argparse.Namespace) -> int:
                 "n_identifiable": len(names),
                 "n_theory": theory,
                 "parameters": list(names),
+                "identifiable": entries,
                 "n_held": len(held),
                 "notes": notes,
             }
@@ -227,10 +250,56 @@ def _analyze_markers(args: argparse.Namespace) -> int:
             f"frame and markers free{f', {len(held)} held' if held else ''}), theory "
             f"{'n/a' if theory is None else theory}"
         )
-        print("  " + ", ".join(names))
+        print(_marker_lines(entries))
         for note in notes:
             print(f"  {note}")
     return 0
+
+
+def _marker_entries(chain, names) -> list[dict]:
+    """Each parameter of ``analyze --markers``: its MDH row and URDF joint, or its frame.
+
+    ``frame.*``: the measurement frame (``measurement``); ``markerK.*`` and ``tool.*`` (the
+    tool's orientation, pose), the tool frame's; an MDH row without a joint: the base or tool
+    frame (as ``analyze``'s ``parameters``).
+    """
+    from ..identification.parameters import ROW_NAME, joint_of
+
+    joint_names = from_chain(chain).joint_names
+    out = []
+    for name in names:
+        row = ROW_NAME.fullmatch(name)
+        k = None if row is None else int(row.group(2))
+        joint = None if k is None else joint_of(name, joint_names)
+        frame = None
+        if joint is None:
+            measured = name.startswith("frame.")
+            frame = "measurement" if measured else chain.base_frame if k == 0 else chain.tool_frame
+        out.append({"name": name, "row": k, "joint": joint, "frame": frame})
+    return out
+
+
+def _marker_lines(entries: list[dict]) -> str:
+    """The parameters of ``analyze --markers`` by joint, in row order after the frames."""
+    groups: dict[str, list[str]] = {}
+    rows: dict[str, float] = {}
+    for e in entries:
+        label = e["joint"] or _marker_frame(e)
+        groups.setdefault(label, []).append(e["name"])
+        rows.setdefault(label, -1.0 if e["row"] is None else e["row"])
+    order = sorted(groups, key=lambda label: rows[label])  # stable: frame, markers, tool
+    width = max(len(label) for label in order)
+    return "\n".join(f"  {label:<{width}}  {', '.join(groups[label])}" for label in order)
+
+
+def _marker_frame(entry: dict) -> str:
+    """The label of a parameter of no joint: its frame, its markers, the tool's orientation."""
+    name = entry["name"]
+    if entry["row"] is not None:
+        return "(base frame)" if entry["row"] == 0 else "(tool frame)"
+    if name.startswith("frame."):
+        return "(measurement frame)"
+    return "(markers)" if name.startswith("marker") else "(tool orientation)"
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -241,7 +310,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     print(analysis_text(analyze("aid", measure="position", params="paper")))
     print()
     print("== UR5, full pose measurement, complete parameter set ==")
-    print(analysis_text(analyze("ur5", measure="pose", params="complete")))
+    res = analyze("ur5", measure="pose", params="complete")
+    print(analysis_text(res))
+    ur5 = argparse.Namespace(robot="ur5", base=None, tool=None)
+    print(_next_step(ur5, res))
     return 0
 
 

@@ -53,6 +53,7 @@ __all__ = [
     "positive_number",
     "print_json",
     "refuse_unused_weight",
+    "robot_words",
     "tool_arg",
     "warning_lines",
     "with_warnings",
@@ -311,6 +312,15 @@ def _bounded(text: str, zero: bool) -> float:
 def print_json(obj: dict) -> None:
     """Print a JSON document (indented)."""
     print(json.dumps(obj, indent=2))
+
+
+def robot_words(args: argparse.Namespace) -> list[str]:
+    """The robot, ``--base`` and ``--tool`` as the user gave them (a ``next:`` line's words)."""
+    words = [args.robot] + (["--base", args.base] if args.base else [])
+    tools = [args.tool] if isinstance(args.tool, str) else args.tool or ()
+    for tool in tools:
+        words += ["--tool", tool]
+    return words
 
 
 def tool_arg(args: argparse.Namespace) -> str | tuple[str, ...] | None:

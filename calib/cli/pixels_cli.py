@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import shlex
 import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,6 +23,7 @@ from .common import (
     check_output_paths,
     given_options,
     print_json,
+    robot_words,
     write_calibration,
     write_outputs,
 )
@@ -345,20 +347,18 @@ def calibrate_pixels_command(args: argparse.Namespace, recorded) -> int:
     )
 
 
-def _postures(chains, configs: int, seed: int, path: str | None = None, warn: bool = True):
+def _postures(chains, configs: int, seed: int, path: str | None = None):
     """Postures of every joint of the chains, random or read.
 
     Each chain's random draw (the first's wins), or each chain's columns of the
-    configurations file ``path`` (``calib design``'s, read once). ``warn``: about default
-    joint ranges of a random draw.
+    configurations file ``path`` (``calib design``'s, read once); a random draw warns about
+    default joint ranges.
     """
-    import numpy as np
-
+    from ..calibration.pixel_chain import joint_postures
     from ..design.configurations import read_chains_configurations
     from ..measurements.limits import warn_default_ranges
 
-    joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
-    if path is None and warn:
+    if path is None:
         for chain in chains:
             warn_default_ranges(chain, "give your own configurations")
     drawn = (
@@ -366,10 +366,7 @@ def _postures(chains, configs: int, seed: int, path: str | None = None, warn: bo
         if path is None
         else read_chains_configurations(path, chains)
     )
-    q = np.zeros((len(drawn[-1]), len(joints)))
-    for chain, own in reversed(list(zip(chains, drawn, strict=True))):
-        q[:, [joints.index(j) for j in chain.joint_names]] = own
-    return joints, q
+    return joint_postures(chains, drawn)
 
 
 def simulate_pixels_command(args: argparse.Namespace) -> int:
@@ -425,74 +422,27 @@ def simulate_pixels_command(args: argparse.Namespace) -> int:
     return 0
 
 
-POSTURE_UNKNOWNS = 6
-"""The most one posture's pixels of a camera determine: the target's placement in the camera
-(2 per pixel below 3 pixels)."""
+def analyze_pixels_command(args: argparse.Namespace) -> int:
+    """``analyze --measure pixels``: the unknowns the cameras' pixels determine.
 
-COUNT_MARGIN = 2
-"""``analyze`` counts at postures whose pixels could determine this many times the unknowns."""
-
-MAX_DOUBLINGS = 5
-"""Times ``analyze`` doubles ``--configs`` for the count (at most 32 times ``--configs``)."""
-
-
-def _generic_count(views, target, args: argparse.Namespace) -> tuple[dict, tuple, list[str]]:
-    """The count at random postures enough of which see the target, its joints and a note.
-
-    From ``--configs`` postures, twice as many (the same seed: the first ones kept) until the
-    seeing postures could determine :data:`COUNT_MARGIN` times the unknowns
-    (:data:`POSTURE_UNKNOWNS` each, 2 per pixel) and the count no longer grows, at most
-    :data:`MAX_DOUBLINGS` times: a count on too few seeing postures is low. No point seen
-    at any of them: the error of the last draw.
+    The library's generic count (:func:`~calib.calibration.pixel_chain.pixel_count`: random
+    postures, drawn again until enough see the target).
     """
     from ..calibration.pixel_chain import pixel_count
 
-    chains, cameras = tuple(c for _, c in views), tuple(c for c, _ in views)
-    counts: list[dict] = []
-    m, settled, first = args.configs, False, 0
-    for doubling in range(MAX_DOUBLINGS + 1):
-        joints, q = _postures(chains, m, args.seed, warn=doubling == 0)
-        try:
-            found = pixel_count(chains, cameras, target, joints, q, args.params)
-        except InvalidArgumentError:  # no point seen: more postures, else the error
-            if doubling == MAX_DOUBLINGS:
-                raise
-            m *= 2
-            continue
-        seeing = min(POSTURE_UNKNOWNS * found["postures"], 2 * found["rows"])
-        enough = seeing >= COUNT_MARGIN * found["n_unknowns"]
-        settled = enough and (not counts or found["n_base"] == counts[-1]["n_base"])
-        counts.append(found)
-        first = found["postures"] if doubling == 0 else first
-        if settled:
-            break
-        m *= 2
-    found["configs"] = len(q)
-    notes = []
-    if not settled:
-        wanted = -(-COUNT_MARGIN * found["n_unknowns"] // POSTURE_UNKNOWNS)
-        notes.append(
-            f"only {found['postures']} of {len(q)} random postures see the target: the count "
-            f"may be low (it wants about {wanted} seeing postures and a count that stops "
-            "growing); give more --configs, or a camera placement that sees the target more often"
-        )
-    elif len(counts) > 1:
-        notes.append(
-            f"{first} of the first {args.configs} random postures "
-            f"{'sees' if first == 1 else 'see'} the target: counted at {len(q)} "
-            f"({found['postures']} seeing), where the count stops growing"
-        )
-    found["notes"] = notes
-    return found, joints, notes
-
-
-def analyze_pixels_command(args: argparse.Namespace) -> int:
-    """``analyze --measure pixels``: the unknowns the cameras' pixels determine."""
     _refuse(args, NOT_PIXELS_ANALYZE)
     refuse_paper(args)
     views, target = _views(args, _cameras(args, several=True), placed=True)
     chains = tuple(c for _, c in views)
-    found, joints, notes = _generic_count(views, target, args)
+    joints = tuple(dict.fromkeys(j for c in chains for j in c.joint_names))
+    found = pixel_count(
+        chains,
+        tuple(c for c, _ in views),
+        target,
+        params=args.params,
+        configs=args.configs,
+        seed=args.seed,
+    )
     cameras = tuple({c.name: c for c, _ in views}.values())
     if args.json:
         print_json(found)
@@ -508,6 +458,28 @@ def analyze_pixels_command(args: argparse.Namespace) -> int:
         + (", target mounting 6" if found["mount"] else "")
         + ")"
     )
-    for note in notes:
+    for note in found["notes"]:
         print(f"note: {note}")
+    print(_next_step(args, found))
     return 0
+
+
+def _next_step(args: argparse.Namespace, found: dict) -> str:
+    """The closing line of ``analyze --measure pixels``: record (or simulate), then calibrate.
+
+    ``calib design`` plans no pixels: the simulation at the postures the count drew (the
+    same ``--seed``) shows how many see the target.
+    """
+    words = [*robot_words(args), "--measure", "pixels"]
+    words += [w for camera in args.camera for w in ("--camera", *camera)]
+    words += ["--target", args.target]
+    simulate = ["simulate", *words, "--configs", str(found["configs"])]
+    simulate += ["--seed", str(args.seed)] if args.seed else []
+    params = ["--params", "complete"] if args.params == "complete" else []
+    calibrate = ["calibrate", *words, *params, "--data", "OBS.csv", "--out", "calibrated.urdf"]
+    return (
+        f"next: record the pixels at postures where the camera sees the target (calib "
+        f"{shlex.join(map(str, [*simulate, '--out', 'obs.csv']))} simulates them: "
+        f"{found['postures']} of the {found['configs']} postures see it), then calib "
+        f"{shlex.join(map(str, calibrate))}"
+    )

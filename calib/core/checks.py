@@ -25,6 +25,7 @@ __all__ = [
     "check_size",
     "check_work",
     "joint_positions",
+    "least_configurations",
     "length_mm",
     "read_only",
     "real_array",
@@ -97,6 +98,14 @@ def check_size(count: int, limit: int, what: str, where: str | None = None) -> N
             f"{place}{count} {what}: calib handles at most {limit} (split the campaign, or "
             f"keep a subset)"
         )
+
+
+def least_configurations(parameters: int, rows: int) -> int:
+    """The fewest configurations whose ``rows`` rows each reach ``parameters`` rows.
+
+    ``calib design``'s least K (it refuses fewer) and ``calib analyze``'s ``next:`` line's.
+    """
+    return -(-parameters // rows)
 
 
 def check_count(value, what: str, minimum: int = 1, maximum: int | None = None) -> int:

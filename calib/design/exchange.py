@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.checks import check_count, real_array, shown
+from ..core.checks import check_count, least_configurations, real_array, shown
 from ..core.choices import EXCHANGE_CRITERIA
 from ..core.progress import steps
 from ..exceptions import InvalidArgumentError
@@ -502,7 +502,7 @@ def optimal_subset(
     if k * r < b:
         raise InvalidArgumentError(
             f"{k} configurations give {k * r} rows for {b} parameters: choose at least "
-            f"{-(-b // r)} configurations"
+            f"{least_configurations(b, r)} configurations"
         )
     if criterion == "I" and (L is None or L.shape != (b, b)):
         raise InvalidArgumentError("criterion I needs the reference information matrix")

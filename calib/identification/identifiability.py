@@ -36,7 +36,7 @@ from .kinds import kind_of
 from .measures import MeasureKind, Measurement
 from .parameters import Kind, Parameter, ParameterSet, joint_of, parameter_set
 from .rank_notes import missing_errors, rank_notes
-from .theory import axes_through_point, per_tool_theory, theoretical_count, theory_note
+from .theory import axes_through_point, per_tool_theory, theory_of
 from .tree_jacobian import tree_complete_jacobian, tree_jacobian, tree_parameters
 
 REGROUP_TOL = 1e-8
@@ -392,9 +392,9 @@ def analyze_model(
     col_norm = np.linalg.norm(W, axis=0)
     zero = tuple(names[i] for i in others if col_norm[i] <= tau)
     t2 = time.perf_counter()
-    Wc = complete()
-    n_complete, _ = numerical_rank(pivoted_diagonal(Wc), n_rows)
+    n_complete, _ = numerical_rank(pivoted_diagonal(complete()), n_rows)
     on_axes = axes_through_point(mdh, measurement)
+    theory = theory_of(mdh, measurement, on_axes)  # the count, or why there is none
     missing = missing_errors(mdh, W_all, pset, extras, kept, n_complete, n_rows)
     t3 = time.perf_counter()
     notes = rank_notes(diag, n_rows, len(kept), len(pset))
@@ -417,8 +417,8 @@ def analyze_model(
         zero=zero,
         B=B,
         n_complete=n_complete,
-        n_theory=theoretical_count(mdh, measurement, on_axes),
-        theory_note=theory_note(mdh, measurement, on_axes),
+        n_theory=theory if isinstance(theory, int) else None,
+        theory_note=theory if isinstance(theory, str) else "",
         on_axes=on_axes,
         per_tool=per_tool_theory(mdh, measurement) if isinstance(mdh, TreeMDH) else (),
         missing=tuple(missing),

@@ -8,6 +8,7 @@ from ..core.words import counted
 from ..kinematics.mdh import MDHModel
 from ..kinematics.mimic import MimicJoint
 from ..kinematics.tree_model import TreeMDH
+from .contacts import Contact
 from .identifiability import Identifiability
 from .parameters import ROW_NAME, Kind
 from .table import format_table
@@ -87,6 +88,17 @@ def tree_table(model: TreeMDH) -> str:
     return format_table(header, rows)
 
 
+def _analysis_label(res: Identifiability, k: int) -> str:
+    """Row k's joint in analyze's text, or the frame it stands for: ``(base frame)``, ...
+
+    A contact's row 0 places its object (frame -1: the plane, the point or the pose held),
+    not a base frame: ``(plane frame)``.
+    """
+    if k == 0 and isinstance(res.measurement, Contact):
+        return f"({res.measurement.object_name} frame)"
+    return _row_label(res.mdh, k, " frame")
+
+
 def _status_table(res: Identifiability) -> str:
     """Table-2 style: per frame and parameter, id / reg / 0 (- where not in the set)."""
     kinds = [
@@ -97,7 +109,7 @@ def _status_table(res: Identifiability) -> str:
     names = set(res.params.names)
     rows = []
     for k in range(len(res.mdh.sigma)):
-        row = [str(k), _row_label(res.mdh, k, " frame")]
+        row = [str(k), _analysis_label(res, k)]
         for kind in kinds:
             name = f"{kind.value}{k}"
             row.append(_STATUS[res.status(name)] if name in names else "-")
@@ -108,7 +120,7 @@ def _status_table(res: Identifiability) -> str:
 def _label(res: Identifiability, name: str) -> str:
     """The joint of a parameter's row (or the frame the row stands for): ``wrist_3_joint``."""
     row = ROW_NAME.fullmatch(name)
-    return "" if row is None else _row_label(res.mdh, int(row.group(2)), " frame")
+    return "" if row is None else _analysis_label(res, int(row.group(2)))
 
 
 def _named(res: Identifiability, name: str) -> str:

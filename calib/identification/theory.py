@@ -23,6 +23,7 @@ __all__ = [
     "point_on_last_axis",
     "theoretical_count",
     "theory_note",
+    "theory_of",
     "tree_axes",
     "tree_theoretical_count",
 ]
@@ -53,9 +54,8 @@ def theoretical_count(
     (:func:`axes_along_tool_z`): a plane contact cannot see a last joint that turns about its
     normal. A chain does not (contact kinds then say nothing).
     """
-    if isinstance(chain_or_mdh, TreeMDH):
-        return tree_theoretical_count(chain_or_mdh, measurement)
-    return measurement.theoretical_count(*_theory_arguments(chain_or_mdh, on_axes))
+    found = theory_of(chain_or_mdh, measurement, on_axes)
+    return found if isinstance(found, int) else None
 
 
 def _theory_arguments(chain_or_mdh: Chain | MDHModel, on_axes: tuple[int, ...]) -> tuple:
@@ -76,14 +76,33 @@ def theory_note(
     :mod:`calib.identification.contacts`). A tree: only rows that are neither the pose nor a
     point (its points on axes are the report's own note).
     """
-    if isinstance(chain_or_mdh, TreeMDH):
-        if isinstance(measurement, Measurement) and (
-            measurement.is_pose or measurement.is_position
-        ):
-            return ""
-        return f"the formula is for the pose or a point, not the rows {measurement.label}"
-    found = measurement.theory(*_theory_arguments(chain_or_mdh, on_axes))
+    found = theory_of(chain_or_mdh, measurement, on_axes)
     return found if isinstance(found, str) else ""
+
+
+def theory_of(
+    chain_or_mdh: Chain | MDHModel | TreeMDH,
+    measurement: MeasureKind,
+    on_axes: tuple[int, ...] = (),
+) -> int | str:
+    """:func:`theoretical_count`, or where it is None :func:`theory_note`'s reason: one call.
+
+    The kind's :meth:`Measurement.theory` (a chain), :func:`tree_theoretical_count` (a tree:
+    no reason for the pose or a point, whose points on axes are the report's own note).
+
+    Args:
+        chain_or_mdh: The chain or its model (for sigma).
+        measurement: What is measured.
+        on_axes: Joints whose axis passes through the measured point.
+    """
+    if not isinstance(chain_or_mdh, TreeMDH):
+        return measurement.theory(*_theory_arguments(chain_or_mdh, on_axes))
+    count = tree_theoretical_count(chain_or_mdh, measurement)
+    if count is not None:
+        return count
+    if isinstance(measurement, Measurement) and (measurement.is_pose or measurement.is_position):
+        return ""
+    return f"the formula is for the pose or a point, not the rows {measurement.label}"
 
 
 @functools.lru_cache(maxsize=16)
