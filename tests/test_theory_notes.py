@@ -66,21 +66,27 @@ def test_a_prismatic_first_joint_is_said(capsys):
         assert line.endswith("theory n/a (prismatic first joint)"), line
 
 
-def test_a_planar_arm_touching_a_plane_has_every_axis_along_the_normal(capsys):
+@pytest.mark.parametrize(("kind", "extra"), [("plane-point", 1), ("plane", 3)])
+def test_a_planar_arm_touching_the_plane_it_moves_in_has_its_own_count(capsys, kind, extra):
+    """Every axis along the normal: 2R + 1 and 2R + 3 (docs/method.md §6), not 4R - 1, 4R - 2
+    (twodof printed base 5 against theory 7 for plane-point)."""
     along = _axes_along_tool_z("twodof")
     assert along == [1, 2]
-    line = _theory_line(_run(capsys, "analyze", "twodof", "--measure", "plane"))
-    assert line.endswith(
-        f"theory n/a (joint axes {', '.join(map(str, along))} along the normal: the formula "
-        "covers the last only)"
-    ), line
+    line = _theory_line(_run(capsys, "analyze", "twodof", "--measure", kind))
+    count = 2 * len(along) + extra
+    assert line.endswith(f"base {count}, complete model {count}, theory {count}"), line
 
 
 @pytest.mark.parametrize(
     ("robot", "kind", "reason"),
     [
         ("ur5", "fixed-pose", "a {n}-joint loop cannot move"),
-        ("twodof", "fixed-point", "{n} joints move the tip: it cannot stay on the point and move"),
+        (
+            "twodof",
+            "fixed-point",
+            "{n} joints move the tip in its plane: it cannot stay on the point and move",
+        ),
+        ("twodof", "fixed-pose", "a planar loop of {n} joints cannot move"),
         ("ur5", "x,y", "the formula is for the pose or a point, not the rows x,y"),
     ],
 )

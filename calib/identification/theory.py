@@ -14,6 +14,7 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.tree_model import TreeMDH
 from .measures import MeasureKind, Measurement
+from .planar import planar_layout
 
 __all__ = [
     "ON_AXIS_TOL",
@@ -59,10 +60,12 @@ def theoretical_count(
 
 
 def _theory_arguments(chain_or_mdh: Chain | MDHModel, on_axes: tuple[int, ...]) -> tuple:
-    """A kind's theory's arguments: the joints' types, the axes through the point, along z."""
+    """A kind's theory's arguments: joints' types, axes through the point, along z, planar."""
     sigma = np.asarray(chain_or_mdh.sigma)
-    along = axes_along_tool_z(chain_or_mdh) if isinstance(chain_or_mdh, MDHModel) else None
-    return sigma[sigma >= 0], tuple(on_axes), along
+    if not isinstance(chain_or_mdh, MDHModel):
+        return sigma[sigma >= 0], tuple(on_axes), None, None
+    along, planar = axes_along_tool_z(chain_or_mdh), planar_layout(chain_or_mdh)
+    return sigma[sigma >= 0], tuple(on_axes), along, planar
 
 
 def theory_note(
