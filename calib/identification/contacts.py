@@ -239,7 +239,7 @@ class PlaneContact(Contact):
         joints the plane sees, the contact origin on another joint axis, another axis along
         the normal, fewer than 4 joints that the plane sees, or ``along`` unknown.
         """
-        if planar is not None:
+        if planar is not None and not planar.through:
             return planar_contact_theory(self.label, planar, on_axes)
         revolute, prismatic, n = count_joints(sigma)
         if along is None:
@@ -438,7 +438,7 @@ class FixedPoseContact(Contact):
 
         Why not for a loop of 6 joints or fewer (it cannot move: finitely many postures).
         """
-        if planar is not None:
+        if planar is not None and not planar.through:
             return planar_contact_theory(self.label, planar, on_axes)
         revolute, prismatic, n = count_joints(sigma)
         if n < 7:

@@ -9,7 +9,7 @@ the contacts say why there is none.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -30,7 +30,10 @@ class Planar:
         oblique: Other prismatic joints (the arm is not planar then, but its tool still turns
             about u only).
         normal: Whether the tool's z axis lies along u (a plane touched lies across u).
-        last: Row (1..n) of the last revolute joint.
+        last: Row (1..n) of the last revolute joint counted.
+        through: Whether the joints whose axis passes through the contact origin are left out
+            (the chain is planar only without them, for a point touching: they never move
+            it); then the counts above are of the other joints.
     """
 
     revolute: int
@@ -39,22 +42,34 @@ class Planar:
     oblique: int
     normal: bool
     last: int
+    through: bool = False
 
 
-def planar_layout(mdh: MDHModel) -> Planar | None:
+def planar_layout(mdh: MDHModel, on_axes: tuple[int, ...] = ()) -> Planar | None:
     """The chain's :class:`Planar` layout, None unless every revolute axis is parallel.
 
     A chain without a revolute joint has one (its prismatic joints oblique, none revolute).
+    Where only the joints ``on_axes`` (1..n, their axes through the contact origin) are not
+    parallel, the layout of the others, marked ``through``.
 
     Tested at the zero configuration and four fixed others, like
     :func:`calib.identification.theory.axes_along_tool_z`.
     """
+    found = _layout(mdh, ())
+    if found is None and on_axes:
+        found = _layout(mdh, on_axes)
+        return None if found is None else replace(found, through=True)
+    return found
+
+
+def _layout(mdh: MDHModel, skip: tuple[int, ...]) -> Planar | None:
+    """:func:`planar_layout` of the joints but those ``skip``."""
     q = np.vstack([np.zeros(mdh.n), np.random.default_rng(12345).uniform(-3.0, 3.0, (4, mdh.n))])
     kin = mdh.kinematics(q)
-    rows = np.arange(1, mdh.n + 1)
+    rows = np.array([k for k in range(1, mdh.n + 1) if k not in skip], dtype=int)
     revolute = rows[mdh.sigma[rows] == 0]
     if not revolute.size:  # the tool does not turn at all
-        return Planar(0, 0, 0, mdh.n, False, 0)
+        return Planar(0, 0, 0, len(rows), False, 0)
     u = kin.R[:, revolute[0], :, 2]
     if not all(_parallel(kin.R[:, k, :, 2], u) for k in revolute):
         return None
@@ -99,6 +114,7 @@ def planar_contact_theory(label: str, planar: Planar, on_axes: tuple[int, ...]) 
             "the tool turns about one direction only, a prismatic joint oblique to it: "
             "no proved formula"
         )
+    on_axes = () if planar.through else on_axes  # those left out are not counted
     in_plane = planar.revolute + planar.across  # the joints that move the contact in its plane
     if label == "fixed-point" and in_plane - (planar.last in on_axes) <= 2:
         moving = in_plane - (planar.last in on_axes)

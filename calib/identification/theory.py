@@ -64,7 +64,7 @@ def _theory_arguments(chain_or_mdh: Chain | MDHModel, on_axes: tuple[int, ...]) 
     sigma = np.asarray(chain_or_mdh.sigma)
     if not isinstance(chain_or_mdh, MDHModel):
         return sigma[sigma >= 0], tuple(on_axes), None, None
-    along, planar = axes_along_tool_z(chain_or_mdh), planar_layout(chain_or_mdh)
+    along, planar = axes_along_tool_z(chain_or_mdh), planar_layout(chain_or_mdh, tuple(on_axes))
     return sigma[sigma >= 0], tuple(on_axes), along, planar
 
 
