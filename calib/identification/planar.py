@@ -124,16 +124,16 @@ def planar_contact_theory(label: str, planar: Planar, on_axes: tuple[int, ...]) 
         )
     if label == "fixed-pose" and in_plane <= 3:
         return f"a planar loop of {_joints(in_plane)} cannot move"
-    if label not in ("plane", "plane-point") or not planar.normal:
-        return f"{_PLANAR}, the contact not flat on the arm's plane: no proved formula"
+    words = "revolute axes all parallel" + (" but those through the tip" if planar.through else "")
+    if label not in ("plane", "plane-point"):
+        return f"{words} (a planar arm): no proved formula for a {label}"
+    if not planar.normal:
+        return f"{words} (a planar arm), the plane oblique to them: no proved formula"
     if label == "plane":
         return 2 * planar.revolute + planar.across + 3
     if any(k != planar.last for k in on_axes):
-        return f"{_PLANAR}, the tip on joint axes {', '.join(map(str, on_axes))}: no proved formula"
+        return f"{words}, the tip on joint axes {', '.join(map(str, on_axes))}: no proved formula"
     return 2 * planar.revolute + planar.across + 1 - (2 if on_axes else 0)
-
-
-_PLANAR = "revolute axes all parallel (a planar arm)"
 
 
 def _joints(count: int) -> str:
