@@ -113,3 +113,20 @@ def test_sweep_with_markers_names_no_parameter_set(capsys):
     argv = ["sweep", "--robots", "twodof", "--configs", "20", "--json"]
     assert json.loads(_run(capsys, *argv))["params"] == "paper"
     assert json.loads(_run(capsys, *argv, "--markers", "3"))["params"] is None
+
+
+def test_a_tip_on_the_last_axis_is_not_the_reason_a_contact_has_no_theory(capsys):
+    """The double pendulum's tip lies on its last axis (Pinocchio: the tool's origin does not
+    move when that joint turns); held at a point, it cannot move: that is the reason printed,
+    not ``point on the last axis: 2 fewer`` (the position's note, printed before)."""
+    chain, model, ids = _pinocchio("double_pendulum")
+    data, tool = model.createData(), pin_frame(model, chain.tool_frame)
+    origins = []
+    for angle in (0.0, 1.0, 2.0):
+        pin.framesForwardKinematics(model, data, pin_config(model, ids, [0.3, angle]))
+        origins.append(data.oMf[tool].translation.copy())
+    assert np.ptp(np.array(origins), axis=0).max() < 1e-12  # on the last axis
+    line = _theory_line(_run(capsys, "analyze", "double_pendulum", "--measure", "fixed-point"))
+    assert line.endswith(
+        "theory n/a (1 joint moves the tip in its plane: it cannot stay on the point and move)"
+    ), line
