@@ -74,12 +74,20 @@ def planar_chains(draw, normal: bool) -> RandomChain:
 
 
 @st.composite
-def spatial_chains(draw) -> RandomChain:
-    """Generic joint lines, revolute and prismatic (their directions drawn on the whole sphere:
-    negative axes too), the tool anywhere, its origin or its z axis on the last axis."""
-    n = draw(st.integers(2, 7))
-    relations = ["generic"] * n
+def spatial_chains(draw, kind: str) -> RandomChain:
+    """Generic and parallel joint lines, revolute and prismatic (directions of either sign),
+    the tool anywhere, its origin or its z axis on the last axis.
+
+    Not two neighbouring prismatic joints along one direction: they are one joint (their
+    strokes add), which no formula of calib counts (docs/method.md §6)."""
+    n = draw(st.integers({"fixed-pose": 7, "plane-point": 2}.get(kind, 4), 8))
+    relations = draw(
+        st.lists(st.sampled_from(["generic", "generic", "parallel"]), min_size=n, max_size=n)
+    )
     sigma = draw(st.lists(st.sampled_from([0, 0, 0, 1]), min_size=n, max_size=n))
+    for k in range(1, n):
+        if sigma[k] == sigma[k - 1] == 1:
+            relations[k] = "generic"
     tool_kind = draw(st.sampled_from(["generic", "origin_on_last_axis", "along_last_axis"]))
     return build_chain(draw(st.integers(0, 2**32 - 1)), relations, sigma, tool_kind, -4.0)
 
@@ -151,7 +159,9 @@ def test_planar_theory_is_the_pinocchio_rank(kind, normal, data):
     _check(data.draw(planar_chains(normal)), kind)
 
 
-@settings(CI, max_examples=12, deadline=None)
-@given(kind=st.sampled_from(KINDS), ch=spatial_chains())
-def test_spatial_theory_is_the_pinocchio_rank(kind, ch):
-    _check(ch, kind)
+@settings(CI, max_examples=10, deadline=None)
+@pytest.mark.parametrize("kind", KINDS)
+@given(data=st.data())
+def test_spatial_theory_is_the_pinocchio_rank(kind, data):
+    """Enough joints for the contact to move; parallel axes and prismatic joints anywhere."""
+    _check(data.draw(spatial_chains(kind)), kind)

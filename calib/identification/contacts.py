@@ -113,9 +113,10 @@ class Contact:
         on_axes: tuple[int, ...],
         along: tuple[int, ...] | None = None,
         planar: Planar | None = None,
+        turns: tuple[int, ...] | None = None,
     ) -> int | None:
         """Closed-form identifiable count, None where there is none (:meth:`theory`)."""
-        found = self.theory(sigma, on_axes, along, planar)
+        found = self.theory(sigma, on_axes, along, planar, turns)
         return found if isinstance(found, int) else None
 
     def theory(
@@ -124,6 +125,7 @@ class Contact:
         on_axes: tuple[int, ...],
         along: tuple[int, ...] | None = None,
         planar: Planar | None = None,
+        turns: tuple[int, ...] | None = None,
     ) -> int | str:
         """Closed-form identifiable count, or why there is none (every kind below defines it).
 
@@ -228,7 +230,7 @@ class PlaneContact(Contact):
         gap[:, 1:] *= s[:, None]
         return gap, J
 
-    def theory(self, sigma, on_axes, along=None, planar=None) -> int | str:
+    def theory(self, sigma, on_axes, along=None, planar=None, turns=None) -> int | str:
         """4R + 2P - 1 with a prismatic joint, 4R - 2 without (see docs/method.md).
 
         2 fewer when the last joint is revolute about the contact's normal: its motion turns
@@ -237,7 +239,9 @@ class PlaneContact(Contact):
 
         Why not where calib has no proved formula: a prismatic joint first or last among the
         joints the plane sees, the contact origin on another joint axis, another axis along
-        the normal, fewer than 4 joints that the plane sees, or ``along`` unknown.
+        the normal, fewer than 4 joints that the plane sees, 2 runs of parallel revolute axes
+        or fewer among them (``turns``: their sums cannot turn), or ``along`` unknown. A
+        planar arm: :func:`~calib.identification.planar.planar_contact_theory`.
         """
         if planar is not None and not planar.through:
             return planar_contact_theory(self.label, planar, on_axes)
@@ -255,8 +259,9 @@ class PlaneContact(Contact):
             return f"the plane sees {len(seen)} joints{unseen}: the formula needs 4"
         if prismatic and (seen[0] == 1 or seen[-1] == 1):
             return f"prismatic {'first' if seen[0] == 1 else 'last'} joint"
-        if np.sum(seen == 0) <= 2:  # two tilts hold them: they cannot turn
-            return f"{_revolute(np.sum(seen == 0))} the plane sees: the formula needs 3"
+        runs = _runs(turns, len(seen), seen)
+        if runs <= 2:  # two tilts hold the sums of their runs: they cannot turn
+            return f"{_revolute(runs)} the plane sees: the formula needs 3"
         return 4 * revolute + 2 * prismatic - (1 if prismatic else 2) - 2 * blind
 
 
@@ -299,7 +304,7 @@ class PlanePointContact(Contact):
         """The z row of the tip's displacement."""
         return W6[:, 2:3]
 
-    def theory(self, sigma, on_axes, along=None, planar=None) -> int | str:
+    def theory(self, sigma, on_axes, along=None, planar=None, turns=None) -> int | str:
         """4R + 2P, 4R - 1 without a prismatic joint, 2 fewer with the tip on the last axis.
 
         Why not with a prismatic first joint, the tip on another axis, fewer than 2 joints
@@ -326,9 +331,19 @@ def _axes(rows: tuple[int, ...]) -> str:
     return f"joint ax{'is' if len(rows) == 1 else 'es'} {', '.join(map(str, rows))}"
 
 
-def _revolute(joints: int) -> str:
-    """``1 revolute joint``, ``2 revolute joints``: in words."""
-    return f"{joints} revolute joint{'' if joints == 1 else 's'}"
+def _revolute(runs: int) -> str:
+    """``1 run of parallel revolute axes``, ``2 runs ...``: in words."""
+    return f"{runs} run{'' if runs == 1 else 's'} of parallel revolute axes"
+
+
+def _runs(turns: tuple[int, ...] | None, rows: int, sigma: np.ndarray) -> int:
+    """Runs of parallel revolute axes among joint rows 1..rows (:func:`~.planar.turning_rows`).
+
+    Without ``turns`` (a chain, not a model), each revolute joint is a run.
+    """
+    if turns is None:
+        return int(np.sum(np.asarray(sigma)[:rows] == 0))
+    return sum(1 for k in turns if k <= rows)
 
 
 def _moving(joints: int) -> str:
@@ -375,12 +390,12 @@ class FixedPointContact(Contact):
         """The position rows of the tip's displacement."""
         return W6[:, :3]
 
-    def theory(self, sigma, on_axes, along=None, planar=None) -> int | str:
+    def theory(self, sigma, on_axes, along=None, planar=None, turns=None) -> int | str:
         """4R + 2P, 4R - 1 without a prismatic joint, 2 fewer with the tip on the last axis.
 
         Why not with the tip on another axis, or 3 joints or fewer that move the tip (the
         last one does not when the tip is on its axis): the tip cannot stay on the point
-        and move.
+        and move; 2 runs of parallel revolute axes or fewer among them; a planar arm.
         """
         if planar is not None:
             return planar_contact_theory(self.label, planar, on_axes)
@@ -390,6 +405,8 @@ class FixedPointContact(Contact):
             return f"the tip on {_axes(on_axes)}: the formula covers the last only"
         if moving <= 3:
             return f"{_moving(moving)} the tip: it cannot stay on the point and move"
+        if _runs(turns, moving, sigma) <= 2:
+            return f"{_revolute(_runs(turns, moving, sigma))} move the tip: no proved formula"
         return 4 * revolute + 2 * prismatic - (0 if prismatic else 1) - (2 if on_axes else 0)
 
 
@@ -433,18 +450,23 @@ class FixedPoseContact(Contact):
         inv = inverse_right_jacobian(-rotation_vector(R))  # Jl^-1(phi) = Jr^-1(-phi)
         return np.concatenate([W6[:, :3], inv @ W6[:, 3:]], axis=1)
 
-    def theory(self, sigma, on_axes, along=None, planar=None) -> int | str:
+    def theory(self, sigma, on_axes, along=None, planar=None, turns=None) -> int | str:
         """4R + 2P (4R - 1 without a prismatic joint) where the loop can move (n >= 7).
 
-        Why not for a loop of 6 joints or fewer (it cannot move: finitely many postures).
+        Why not for a loop of 6 joints or fewer (it cannot move: finitely many postures), 3
+        runs of parallel revolute axes or fewer (``turns``: their sums cannot turn), other
+        neighbouring parallel revolute axes, or a planar arm.
         """
         if planar is not None and not planar.through:
             return planar_contact_theory(self.label, planar, on_axes)
         revolute, prismatic, n = count_joints(sigma)
         if n < 7:
             return f"a {n}-joint loop cannot move"
-        if revolute <= 3:  # the loop's orientation holds them: they cannot turn
-            return f"{_revolute(revolute)} in the loop: the formula needs 4"
+        runs = _runs(turns, n, sigma)
+        if runs <= 3:  # the loop's orientation holds the sums of their runs: they cannot turn
+            return f"{_revolute(runs)} in the loop: the formula needs 4"
+        if runs < revolute:  # counts found below the formula there
+            return "neighbouring revolute axes parallel in the loop: no proved formula"
         return 4 * revolute + 2 * prismatic - (0 if prismatic else 1)
 
 
@@ -467,7 +489,7 @@ class KnownPlaneContact(PlaneContact):
             "tool frame): the contact slides and turns on the plane",
         )
 
-    def theory(self, sigma, on_axes, along=None, planar=None) -> int | str:
+    def theory(self, sigma, on_axes, along=None, planar=None, turns=None) -> int | str:
         """Why not: calib has no proved formula with the plane given."""
         return "no proved formula with the plane given"
 
@@ -483,7 +505,7 @@ class KnownPlanePointContact(PlanePointContact):
         """What these contacts can never identify."""
         return ("the tip's orientation: only the tip point is constrained",)
 
-    def theory(self, sigma, on_axes, along=None, planar=None) -> int | str:
+    def theory(self, sigma, on_axes, along=None, planar=None, turns=None) -> int | str:
         """Why not: calib has no proved formula with the plane given."""
         return "no proved formula with the plane given"
 

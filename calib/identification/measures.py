@@ -88,6 +88,7 @@ class MeasureKind(Protocol):
         on_axes: tuple[int, ...],
         along: tuple[int, ...] | None = None,
         planar: Planar | None = None,
+        turns: tuple[int, ...] | None = None,
     ) -> int | None: ...
 
     def theory(  # noqa: D102
@@ -96,6 +97,7 @@ class MeasureKind(Protocol):
         on_axes: tuple[int, ...],
         along: tuple[int, ...] | None = None,
         planar: Planar | None = None,
+        turns: tuple[int, ...] | None = None,
     ) -> int | str: ...
 
 
@@ -357,9 +359,10 @@ class Measurement:
         on_axes: tuple[int, ...],
         along: tuple[int, ...] | None = None,
         planar: Planar | None = None,
+        turns: tuple[int, ...] | None = None,
     ) -> int | None:
         """:meth:`theory`'s count, None where the formula says nothing."""
-        found = self.theory(sigma, on_axes, along, planar)
+        found = self.theory(sigma, on_axes, along, planar, turns)
         return found if isinstance(found, int) else None
 
     def theory(
@@ -368,6 +371,7 @@ class Measurement:
         on_axes: tuple[int, ...],
         along: tuple[int, ...] | None = None,
         planar: Planar | None = None,
+        turns: tuple[int, ...] | None = None,
     ) -> int | str:
         """4R + 2P + 6 for the pose, 4R + 2P + 3 for a point (2 fewer on the last axis).
 
@@ -380,6 +384,8 @@ class Measurement:
             along: Revolute joint rows whose axis lies along the tool's z axis (unused here).
             planar: The layout of a chain whose revolute axes are all parallel (unused:
                 the formulas hold for planar arms too).
+            turns: Rows of the revolute joints whose axis is not parallel to the previous
+                revolute one's (unused here).
         """
         revolute, prismatic, n = count_joints(sigma)
         if self.is_pose:

@@ -81,6 +81,27 @@ def _layout(mdh: MDHModel, skip: tuple[int, ...]) -> Planar | None:
     return Planar(int(revolute.size), across, axial, oblique, normal, int(revolute[-1]))
 
 
+def turning_rows(mdh: MDHModel) -> tuple[int, ...]:
+    """Rows (1..n) where a run of parallel revolute axes starts (the first revolute joint's).
+
+    A run: consecutive revolute joints (prismatic ones between them skipped) whose axes are
+    parallel at every posture.
+
+    The tool's orientation depends on the sum of the angles of a run only (a rotation about
+    one axis commutes with the fixed rotation that keeps it parallel to the next): a contact
+    whose rows hold the orientation freezes those sums unless there are more runs than rows.
+    """
+    q = np.vstack([np.zeros(mdh.n), np.random.default_rng(12345).uniform(-3.0, 3.0, (4, mdh.n))])
+    kin = mdh.kinematics(q)
+    out: list[int] = []
+    for k in range(1, mdh.n + 1):
+        if mdh.sigma[k] == 0 and (
+            not out or not _parallel(kin.R[:, k, :, 2], kin.R[:, out[-1], :, 2])
+        ):
+            out.append(k)
+    return tuple(out)
+
+
 def _parallel(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether unit vectors ``(m, 3)`` are parallel at every row."""
     return bool(np.all(np.linalg.norm(np.cross(a, b), axis=1) < PARALLEL_TOL))
@@ -141,4 +162,4 @@ def _joints(count: int) -> str:
     return f"{count} joint" if count == 1 else f"{count} joints"
 
 
-__all__ = ["PARALLEL_TOL", "Planar", "planar_contact_theory", "planar_layout"]
+__all__ = ["PARALLEL_TOL", "Planar", "planar_contact_theory", "planar_layout", "turning_rows"]

@@ -14,7 +14,7 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.tree_model import TreeMDH
 from .measures import MeasureKind, Measurement
-from .planar import planar_layout
+from .planar import planar_layout, turning_rows
 
 __all__ = [
     "ON_AXIS_TOL",
@@ -60,12 +60,16 @@ def theoretical_count(
 
 
 def _theory_arguments(chain_or_mdh: Chain | MDHModel, on_axes: tuple[int, ...]) -> tuple:
-    """A kind's theory's arguments: joints' types, axes through the point, along z, planar."""
+    """A kind's theory's arguments: joint types, axes through the point, along z, and more.
+
+    The planar layout (:func:`~.planar.planar_layout`) and the rows where runs of parallel
+    revolute axes start (:func:`~.planar.turning_rows`).
+    """
     sigma = np.asarray(chain_or_mdh.sigma)
     if not isinstance(chain_or_mdh, MDHModel):
-        return sigma[sigma >= 0], tuple(on_axes), None, None
+        return sigma[sigma >= 0], tuple(on_axes), None, None, None
     along, planar = axes_along_tool_z(chain_or_mdh), planar_layout(chain_or_mdh, tuple(on_axes))
-    return sigma[sigma >= 0], tuple(on_axes), along, planar
+    return sigma[sigma >= 0], tuple(on_axes), along, planar, turning_rows(chain_or_mdh)
 
 
 def theory_note(
