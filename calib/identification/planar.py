@@ -45,6 +45,21 @@ class Planar:
     through: bool = False
 
 
+@dataclass(frozen=True)
+class Layout:
+    """What a kind's theory reads of the joint axes, beyond the joints' types.
+
+    Attributes:
+        along: Revolute joint rows (1..n) whose axis lies along the tool's z axis.
+        planar: The :class:`Planar` layout, None unless every revolute axis is parallel.
+        turns: Rows where a run of parallel revolute axes starts (``turning_rows``).
+    """
+
+    along: tuple[int, ...]
+    planar: Planar | None
+    turns: tuple[int, ...]
+
+
 def planar_layout(mdh: MDHModel, on_axes: tuple[int, ...] = ()) -> Planar | None:
     """The chain's :class:`Planar` layout, None unless every revolute axis is parallel.
 
@@ -162,4 +177,11 @@ def _joints(count: int) -> str:
     return f"{count} joint" if count == 1 else f"{count} joints"
 
 
-__all__ = ["PARALLEL_TOL", "Planar", "planar_contact_theory", "planar_layout", "turning_rows"]
+__all__ = [
+    "PARALLEL_TOL",
+    "Layout",
+    "Planar",
+    "planar_contact_theory",
+    "planar_layout",
+    "turning_rows",
+]
