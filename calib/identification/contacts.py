@@ -449,7 +449,8 @@ class FixedPoseContact(Contact):
 
         Why not for a loop of 6 joints or fewer (it cannot move: finitely many postures), 3
         runs of parallel revolute axes or fewer (their sums cannot turn), other
-        neighbouring parallel revolute axes, or a planar arm.
+        neighbouring parallel revolute axes in a loop of 7 (one degree of freedom), or a
+        planar arm.
         """
         planar = None if layout is None else layout.planar
         if planar is not None and not planar.through:
@@ -460,8 +461,8 @@ class FixedPoseContact(Contact):
         runs = _runs(layout, n, sigma)
         if runs <= 3:  # the loop's orientation holds the sums of their runs: they cannot turn
             return f"{_revolute(runs)} in the loop: the formula needs 4"
-        if runs < revolute:  # counts found below the formula there
-            return "neighbouring revolute axes parallel in the loop: no proved formula"
+        if runs < revolute and n == 7:  # counts found below the formula there
+            return "neighbouring revolute axes parallel in a 7-joint loop: no proved formula"
         return 4 * revolute + 2 * prismatic - (0 if prismatic else 1)
 
 
