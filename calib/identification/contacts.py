@@ -119,7 +119,7 @@ class Contact:
     ) -> int | str:
         """Closed-form identifiable count, or why there is none (every kind below defines it).
 
-        A planar arm (``planar``, every revolute axis parallel) has its own
+        A planar arm (``layout.planar``: every revolute axis parallel) has its own
         (:func:`~calib.identification.planar.planar_contact_theory`).
         """
         raise NotImplementedError  # pragma: no cover
