@@ -32,41 +32,45 @@ def _tool(model, data, base, tool):
     return data.oMf[model.getFrameId(base)].inverse() * data.oMf[model.getFrameId(tool)]
 
 
-def _gaps(model, base, tool, plane, contact, Q):
-    """Each posture's height and tilt of ``contact`` on ``plane`` (base frame) ``(3 m,)``."""
-    data, out = model.createData(), []
+def _gaps(model, data, base, tool, plane, contact, Q):
+    """Each posture's height and tilt of ``contact`` on ``plane`` (base frame) ``(3 m,)``.
+
+    ``data`` is the model's, made once (``createData`` of the full TALOS costs milliseconds:
+    made per call, it was most of this file's time)."""
+    b, t, out = model.getFrameId(base), model.getFrameId(tool), []
     for q in Q:
         pin.framesForwardKinematics(model, data, q)
-        M = plane.actInv(_tool(model, data, base, tool) * contact)
+        M = plane.actInv(data.oMf[b].inverse() * data.oMf[t] * contact)
         out += [M.translation[2], M.rotation[0, 2], M.rotation[1, 2]]
     return np.array(out)
 
 
-def _flush(model, base, tool, plane, Q, joints):
+def _flush(model, data, base, tool, plane, Q, joints):
     """The postures moved onto the plane (Newton, least-norm steps on ``joints``' q)."""
     Q = Q.copy()
     for k, q in enumerate(Q):
         for _ in range(8):
-            g = _gaps(model, base, tool, plane, CONTACT, q[None])
+            g = _gaps(model, data, base, tool, plane, CONTACT, q[None])
             E = 1e-7 * np.eye(len(q))[joints]
-            J = np.array([_gaps(model, base, tool, plane, CONTACT, (q + e, q - e)) for e in E])
+            J = np.array(
+                [_gaps(model, data, base, tool, plane, CONTACT, (q + e, q - e)) for e in E]
+            )
             q[joints] -= np.linalg.pinv((J[:, :3] - J[:, 3:]).T / 2e-7) @ g
         Q[k] = q
     return Q
 
 
-def _terms(model):
+def _terms(model, data):
     """Each arm's base, tool, table plane, flush postures and its chain's joint ids."""
     terms = []
     for side, tool in ARMS:
         base = f"{side}_sole_link"
         Q = configurations(model, read_joints(REAL / f"{side}_train.csv")[1])
-        data = model.createData()
         pin.framesForwardKinematics(model, data, Q[0])
         plane = _tool(model, data, base, tool) * CONTACT
         ids = [model.getJointId(n) for n in calib.load_robot(URDF, base, tool).joint_names]
         joints = [model.joints[j].idx_q for j in ids]
-        terms.append((base, tool, plane, _flush(model, base, tool, plane, Q, joints), ids))
+        terms.append((base, tool, plane, _flush(model, data, base, tool, plane, Q, joints), ids))
     return terms
 
 
@@ -75,7 +79,8 @@ def _placement_jacobian() -> tuple[np.ndarray, list[int], tuple]:
     """The gaps' central differences in every chain joint's placement error (6 each, in the
     order of ``joints``), then each term's plane and contact (12 each); ``joints``; terms."""
     model = pin.buildModelFromUrdf(str(URDF))
-    terms = _terms(model)
+    data = model.createData()
+    terms = _terms(model, data)
     joints = sorted({j for t in terms for j in t[4]})
     nominal = [pin.SE3(model.jointPlacements[j]) for j in joints]
     size = 6 * len(joints) + 12 * len(terms)
@@ -87,7 +92,7 @@ def _placement_jacobian() -> tuple[np.ndarray, list[int], tuple]:
         for k, (base, tool, plane, Q, _) in enumerate(terms):
             y = x[6 * len(joints) + 12 * k :]
             moved = plane * pin.exp6(y[:6])
-            out.append(_gaps(model, base, tool, moved, CONTACT * pin.exp6(y[6:12]), Q))
+            out.append(_gaps(model, data, base, tool, moved, CONTACT * pin.exp6(y[6:12]), Q))
         return np.concatenate(out)
 
     h = 1e-6
@@ -189,7 +194,8 @@ def test_auto_offers_each_chains_mdh_rows_not_the_components_where_chains_meet()
     """Both arms from their soles at ``auto``: 111 directions offered, 96 determined.
 
     ``complete`` also offers the components of the shared joints and their neighbours (132
-    offered, 99 determined: the rank above). ``auto`` does not, on purpose (measured
+    offered, 99 determined: the rank above, 109, less the 10 unknowns of the two planes and
+    contact frames, 3 + 2 each). ``auto`` does not, on purpose (measured
     2026-11-29, offered after the MDH rows so that only the 3 missing tilts were new):
     5-fold held-out heights from the left sole 4.54 / 6.84 mm -> 5.41 / 7.56 (left / right),
     simulated arms (``benchmarks/self_measure.py``) 1.128 / 0.333 -> 1.596 / 0.394. The
@@ -200,7 +206,9 @@ def test_auto_offers_each_chains_mdh_rows_not_the_components_where_chains_meet()
         warnings.simplefilter("ignore")
         result = calib.calibrate(calib.Problem(_both_arms()))
     # 96: the touches' rank in the chains' MDH rows, by Pinocchio alone (independent_mdh_rank);
-    # 111 is the count of names calib offers (its MDH rows, the rows two chains share once).
+    # 111 is the count of names calib offers (its MDH rows, the rows two chains share once):
+    # calib's own number, not an independent one (_row_twists' rows 2..n of both chains give
+    # 112 columns, 107 distinct: the rows calib offers beside them are not counted here).
     determined = independent_mdh_rank()
     assert f"the touches determine {determined} of the 111 parameters offered" in result.notes
     assert not any(n.endswith((":rx", ":ry")) for n in result.selection.kept)

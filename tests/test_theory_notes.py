@@ -66,21 +66,27 @@ def test_a_prismatic_first_joint_is_said(capsys):
         assert line.endswith("theory n/a (prismatic first joint)"), line
 
 
-def test_a_planar_arm_touching_a_plane_has_every_axis_along_the_normal(capsys):
+@pytest.mark.parametrize(("kind", "extra"), [("plane-point", 1), ("plane", 3)])
+def test_a_planar_arm_touching_the_plane_it_moves_in_has_its_own_count(capsys, kind, extra):
+    """Every axis along the normal: 2R + 1 and 2R + 3 (docs/method.md §6), not 4R - 1, 4R - 2
+    (twodof printed base 5 against theory 7 for plane-point)."""
     along = _axes_along_tool_z("twodof")
     assert along == [1, 2]
-    line = _theory_line(_run(capsys, "analyze", "twodof", "--measure", "plane"))
-    assert line.endswith(
-        f"theory n/a (joint axes {', '.join(map(str, along))} along the normal: the formula "
-        "covers the last only)"
-    ), line
+    line = _theory_line(_run(capsys, "analyze", "twodof", "--measure", kind))
+    count = 2 * len(along) + extra
+    assert line.endswith(f"base {count}, complete model {count}, theory {count}"), line
 
 
 @pytest.mark.parametrize(
     ("robot", "kind", "reason"),
     [
         ("ur5", "fixed-pose", "a {n}-joint loop cannot move"),
-        ("twodof", "fixed-point", "{n} joints move the tip: it cannot stay on the point and move"),
+        (
+            "twodof",
+            "fixed-point",
+            "{n} joints move the tip in its plane: it cannot stay on the point and move",
+        ),
+        ("twodof", "fixed-pose", "a planar loop of {n} joints cannot move"),
         ("ur5", "x,y", "the formula is for the pose or a point, not the rows x,y"),
     ],
 )
@@ -107,3 +113,20 @@ def test_sweep_with_markers_names_no_parameter_set(capsys):
     argv = ["sweep", "--robots", "twodof", "--configs", "20", "--json"]
     assert json.loads(_run(capsys, *argv))["params"] == "paper"
     assert json.loads(_run(capsys, *argv, "--markers", "3"))["params"] is None
+
+
+def test_a_tip_on_the_last_axis_is_not_the_reason_a_contact_has_no_theory(capsys):
+    """The double pendulum's tip lies on its last axis (Pinocchio: the tool's origin does not
+    move when that joint turns); held at a point, it cannot move: that is the reason printed,
+    not ``point on the last axis: 2 fewer`` (the position's note, printed before)."""
+    chain, model, ids = _pinocchio("double_pendulum")
+    data, tool = model.createData(), pin_frame(model, chain.tool_frame)
+    origins = []
+    for angle in (0.0, 1.0, 2.0):
+        pin.framesForwardKinematics(model, data, pin_config(model, ids, [0.3, angle]))
+        origins.append(data.oMf[tool].translation.copy())
+    assert np.ptp(np.array(origins), axis=0).max() < 1e-12  # on the last axis
+    line = _theory_line(_run(capsys, "analyze", "double_pendulum", "--measure", "fixed-point"))
+    assert line.endswith(
+        "theory n/a (1 joint moves the tip in its plane: it cannot stay on the point and move)"
+    ), line

@@ -34,6 +34,7 @@ from ..kinematics.so3 import (
     tilts,
 )
 from .measures import CONTACT_NAMES, count_joints
+from .planar import Layout, planar_contact_theory
 
 CONTACT_TOL = 1e-12
 """Largest gap [m or rad] of a posture :func:`contact_postures` keeps: the contact holds."""
@@ -107,16 +108,20 @@ class Contact:
         raise NotImplementedError  # pragma: no cover
 
     def theoretical_count(
-        self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
+        self, sigma: np.ndarray, on_axes: tuple[int, ...], layout: Layout | None = None
     ) -> int | None:
         """Closed-form identifiable count, None where there is none (:meth:`theory`)."""
-        found = self.theory(sigma, on_axes, along)
+        found = self.theory(sigma, on_axes, layout)
         return found if isinstance(found, int) else None
 
     def theory(
-        self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
+        self, sigma: np.ndarray, on_axes: tuple[int, ...], layout: Layout | None = None
     ) -> int | str:
-        """Closed-form identifiable count, or why there is none (every kind below defines it)."""
+        """Closed-form identifiable count, or why there is none (every kind below defines it).
+
+        A planar arm (``layout.planar``: every revolute axis parallel) has its own
+        (:func:`~calib.identification.planar.planar_contact_theory`).
+        """
         raise NotImplementedError  # pragma: no cover
 
     def newton_system(
@@ -215,7 +220,7 @@ class PlaneContact(Contact):
         gap[:, 1:] *= s[:, None]
         return gap, J
 
-    def theory(self, sigma, on_axes, along=None) -> int | str:
+    def theory(self, sigma, on_axes, layout=None) -> int | str:
         """4R + 2P - 1 with a prismatic joint, 4R - 2 without (see docs/method.md).
 
         2 fewer when the last joint is revolute about the contact's normal: its motion turns
@@ -224,11 +229,17 @@ class PlaneContact(Contact):
 
         Why not where calib has no proved formula: a prismatic joint first or last among the
         joints the plane sees, the contact origin on another joint axis, another axis along
-        the normal, fewer than 4 joints that the plane sees, or ``along`` unknown.
+        the normal, fewer than 4 joints that the plane sees, 2 runs of parallel revolute axes
+        or fewer among them (their sums cannot turn), or ``along`` unknown. A
+        planar arm: :func:`~calib.identification.planar.planar_contact_theory`.
         """
+        planar = None if layout is None else layout.planar
+        if planar is not None and not planar.through:
+            return planar_contact_theory(self.label, planar, on_axes)
         revolute, prismatic, n = count_joints(sigma)
-        if along is None:
+        if layout is None:
             return "the joint axes along the normal unknown"
+        along = layout.along
         if any(k != n for k in on_axes):
             return f"the contact origin on {_axes(on_axes)}: the formula covers the last only"
         if any(k != n for k in along):
@@ -240,6 +251,9 @@ class PlaneContact(Contact):
             return f"the plane sees {len(seen)} joints{unseen}: the formula needs 4"
         if prismatic and (seen[0] == 1 or seen[-1] == 1):
             return f"prismatic {'first' if seen[0] == 1 else 'last'} joint"
+        runs = _runs(layout, len(seen), seen)
+        if runs <= 2:  # two tilts hold the sums of their runs: they cannot turn
+            return f"{_revolute(runs)} the plane sees: the formula needs 3"
         return 4 * revolute + 2 * prismatic - (1 if prismatic else 2) - 2 * blind
 
 
@@ -282,13 +296,16 @@ class PlanePointContact(Contact):
         """The z row of the tip's displacement."""
         return W6[:, 2:3]
 
-    def theory(self, sigma, on_axes, along=None) -> int | str:
+    def theory(self, sigma, on_axes, layout=None) -> int | str:
         """4R + 2P, 4R - 1 without a prismatic joint, 2 fewer with the tip on the last axis.
 
         Why not with a prismatic first joint, the tip on another axis, fewer than 2 joints
         that move the tip (the last one does not when the tip is on its axis), or a
         prismatic one among 2 such joints.
         """
+        planar = None if layout is None else layout.planar
+        if planar is not None:
+            return planar_contact_theory(self.label, planar, on_axes)
         revolute, prismatic, n = count_joints(sigma)
         moving = n - (n in on_axes)
         if any(k != n for k in on_axes):
@@ -305,6 +322,21 @@ class PlanePointContact(Contact):
 def _axes(rows: tuple[int, ...]) -> str:
     """``joint axis 3``, ``joint axes 1, 2``: joint rows, in words."""
     return f"joint ax{'is' if len(rows) == 1 else 'es'} {', '.join(map(str, rows))}"
+
+
+def _revolute(runs: int) -> str:
+    """``1 run of parallel revolute axes``, ``2 runs ...``: in words."""
+    return f"{runs} run{'' if runs == 1 else 's'} of parallel revolute axes"
+
+
+def _runs(layout: Layout | None, rows: int, sigma: np.ndarray) -> int:
+    """Runs of parallel revolute axes among joint rows 1..rows (:func:`~.planar.turning_rows`).
+
+    Without a layout (a chain, not a model), each revolute joint is a run.
+    """
+    if layout is None:
+        return int(np.sum(np.asarray(sigma)[:rows] == 0))
+    return sum(1 for k in layout.turns if k <= rows)
 
 
 def _moving(joints: int) -> str:
@@ -351,19 +383,24 @@ class FixedPointContact(Contact):
         """The position rows of the tip's displacement."""
         return W6[:, :3]
 
-    def theory(self, sigma, on_axes, along=None) -> int | str:
+    def theory(self, sigma, on_axes, layout=None) -> int | str:
         """4R + 2P, 4R - 1 without a prismatic joint, 2 fewer with the tip on the last axis.
 
         Why not with the tip on another axis, or 3 joints or fewer that move the tip (the
         last one does not when the tip is on its axis): the tip cannot stay on the point
-        and move.
+        and move; 2 runs of parallel revolute axes or fewer among them; a planar arm.
         """
+        planar = None if layout is None else layout.planar
+        if planar is not None:
+            return planar_contact_theory(self.label, planar, on_axes)
         revolute, prismatic, n = count_joints(sigma)
         moving = n - (n in on_axes)
         if any(k != n for k in on_axes):
             return f"the tip on {_axes(on_axes)}: the formula covers the last only"
         if moving <= 3:
             return f"{_moving(moving)} the tip: it cannot stay on the point and move"
+        if _runs(layout, moving, sigma) <= 2:
+            return f"{_revolute(_runs(layout, moving, sigma))} move the tip: no proved formula"
         return 4 * revolute + 2 * prismatic - (0 if prismatic else 1) - (2 if on_axes else 0)
 
 
@@ -407,14 +444,25 @@ class FixedPoseContact(Contact):
         inv = inverse_right_jacobian(-rotation_vector(R))  # Jl^-1(phi) = Jr^-1(-phi)
         return np.concatenate([W6[:, :3], inv @ W6[:, 3:]], axis=1)
 
-    def theory(self, sigma, on_axes, along=None) -> int | str:
+    def theory(self, sigma, on_axes, layout=None) -> int | str:
         """4R + 2P (4R - 1 without a prismatic joint) where the loop can move (n >= 7).
 
-        Why not for a loop of 6 joints or fewer (it cannot move: finitely many postures).
+        Why not for a loop of 6 joints or fewer (it cannot move: finitely many postures), 3
+        runs of parallel revolute axes or fewer (their sums cannot turn), other
+        neighbouring parallel revolute axes in a loop of 7 (one degree of freedom), or a
+        planar arm.
         """
+        planar = None if layout is None else layout.planar
+        if planar is not None and not planar.through:
+            return planar_contact_theory(self.label, planar, on_axes)
         revolute, prismatic, n = count_joints(sigma)
         if n < 7:
             return f"a {n}-joint loop cannot move"
+        runs = _runs(layout, n, sigma)
+        if runs <= 3:  # the loop's orientation holds the sums of their runs: they cannot turn
+            return f"{_revolute(runs)} in the loop: the formula needs 4"
+        if runs < revolute and n == 7:  # counts found below the formula there
+            return "neighbouring revolute axes parallel in a 7-joint loop: no proved formula"
         return 4 * revolute + 2 * prismatic - (0 if prismatic else 1)
 
 
@@ -437,7 +485,7 @@ class KnownPlaneContact(PlaneContact):
             "tool frame): the contact slides and turns on the plane",
         )
 
-    def theory(self, sigma, on_axes, along=None) -> int | str:
+    def theory(self, sigma, on_axes, layout=None) -> int | str:
         """Why not: calib has no proved formula with the plane given."""
         return "no proved formula with the plane given"
 
@@ -453,7 +501,7 @@ class KnownPlanePointContact(PlanePointContact):
         """What these contacts can never identify."""
         return ("the tip's orientation: only the tip point is constrained",)
 
-    def theory(self, sigma, on_axes, along=None) -> int | str:
+    def theory(self, sigma, on_axes, layout=None) -> int | str:
         """Why not: calib has no proved formula with the plane given."""
         return "no proved formula with the plane given"
 

@@ -22,6 +22,7 @@ from ..core.checks import shown
 from ..core.choices import CONTACT_MEASURES
 from ..exceptions import InvalidArgumentError
 from ..kinematics.so3 import inverse_right_jacobian, rotation_vector
+from .planar import Layout
 
 MAX_MARKER = 1e3
 """Largest marker coordinate [m]: a measured point on a robot's tool, not a kilometre away."""
@@ -101,19 +102,20 @@ class MeasureKind(Protocol):
         """
 
     def theoretical_count(
-        self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
+        self, sigma: np.ndarray, on_axes: tuple[int, ...], layout: Layout | None = None
     ) -> int | None:
         """:meth:`theory`'s count, None where the formula says nothing."""
 
     def theory(
-        self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
+        self, sigma: np.ndarray, on_axes: tuple[int, ...], layout: Layout | None = None
     ) -> int | str:
         """The closed-form identifiable count, or why there is none.
 
         Args:
             sigma: The joints' types (0 revolute, 1 prismatic) in chain order ``(n,)``.
             on_axes: Joint rows (1..n) whose axis passes through the measured point.
-            along: Revolute joint rows whose axis lies along the tool's z axis.
+            layout: The chain's layout (:class:`~.planar.Layout`): the revolute joints whose
+                axis lies along the tool's z axis, the planar layout, the runs of parallel axes.
         """
 
 
@@ -370,14 +372,14 @@ class Measurement:
         return W if index is None else W[:, index]
 
     def theoretical_count(
-        self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
+        self, sigma: np.ndarray, on_axes: tuple[int, ...], layout: Layout | None = None
     ) -> int | None:
         """:meth:`theory`'s count, None where the formula says nothing."""
-        found = self.theory(sigma, on_axes, along)
+        found = self.theory(sigma, on_axes, layout)
         return found if isinstance(found, int) else None
 
     def theory(
-        self, sigma: np.ndarray, on_axes: tuple[int, ...], along: tuple[int, ...] | None = None
+        self, sigma: np.ndarray, on_axes: tuple[int, ...], layout: Layout | None = None
     ) -> int | str:
         """4R + 2P + 6 for the pose, 4R + 2P + 3 for a point (2 fewer on the last axis).
 
@@ -387,7 +389,8 @@ class Measurement:
         Args:
             sigma: The joints' types (0 revolute, 1 prismatic) in chain order ``(n,)``.
             on_axes: Joint rows (1..n) whose axis passes through the measured point.
-            along: Revolute joint rows whose axis lies along the tool's z axis (unused here).
+            layout: What the axes' geometry says (:class:`~.planar.Layout`; unused here: the
+                formulas hold for planar arms too).
         """
         revolute, prismatic, n = count_joints(sigma)
         if self.is_pose:

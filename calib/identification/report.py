@@ -250,8 +250,11 @@ def _mimic_lines(res: Identifiability) -> list[str]:
 
 
 def _theory_note(res: Identifiability) -> str:
-    """The points on axes, else why there is no theory (``n/a (prismatic first joint)``)."""
-    note = _axes_note(res)
+    """The points on axes, else why there is no theory (``n/a (prismatic first joint)``).
+
+    A contact without a theory: its kind's reason (a tip on the last axis is not why).
+    """
+    note = "" if res.measurement.is_contact and res.n_theory is None else _axes_note(res)
     if note or res.n_theory is not None or not res.theory_note:
         return note
     return f" ({res.theory_note})"

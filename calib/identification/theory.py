@@ -14,6 +14,7 @@ from ..kinematics.mdh import MDHModel
 from ..kinematics.robot import Chain
 from ..kinematics.tree_model import TreeMDH
 from .measures import MeasureKind, Measurement
+from .planar import Layout, planar_layout, turning_rows
 
 __all__ = [
     "ON_AXIS_TOL",
@@ -59,10 +60,20 @@ def theoretical_count(
 
 
 def _theory_arguments(chain_or_mdh: Chain | MDHModel, on_axes: tuple[int, ...]) -> tuple:
-    """A kind's theory's arguments: the joints' types, the axes through the point, along z."""
+    """A kind's theory's arguments: the joints' types, the axes through the point, the layout.
+
+    The layout (:class:`~.planar.Layout`): the axes along the tool's z, the planar layout and
+    where runs of parallel revolute axes start. A chain (not a model) has none.
+    """
     sigma = np.asarray(chain_or_mdh.sigma)
-    along = axes_along_tool_z(chain_or_mdh) if isinstance(chain_or_mdh, MDHModel) else None
-    return sigma[sigma >= 0], tuple(on_axes), along
+    if not isinstance(chain_or_mdh, MDHModel):
+        return sigma[sigma >= 0], tuple(on_axes), None
+    layout = Layout(
+        axes_along_tool_z(chain_or_mdh),
+        planar_layout(chain_or_mdh, tuple(on_axes)),
+        turning_rows(chain_or_mdh),
+    )
+    return sigma[sigma >= 0], tuple(on_axes), layout
 
 
 def theory_note(
