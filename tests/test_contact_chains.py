@@ -411,7 +411,8 @@ def test_the_engines_keywords_are_its_run_and_its_options():
 
     given = set(list(inspect.signature(calibrate_contact_chains).parameters)[2:])
     run = {f.name for f in dataclasses.fields(Run)} - {"chains", "data", "options"}
-    options = {"params", "orientation_weight", "max_iterations", "holdout", "seed", "elastic"}
+    options = {"params", "fix", "free", "orientation_weight", "max_iterations", "holdout", "seed"}
+    options |= {"elastic"}
     assert given == run | options and options <= {f.name for f in dataclasses.fields(Options)}
     chains = _chains()
     data = [simulate_contacts(c, 12, "plane", seed=2).data for c in chains]
