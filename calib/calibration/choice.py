@@ -253,17 +253,20 @@ WEAKLY_SEEN = 0.05
 under which :func:`weakly_seen` names it. Measurements: docs/developers/engine.md#weakly_seen"""
 
 
-def weakly_seen(model: ChainsModel, start: ChainsState, flush: ChainsData) -> dict[str, float]:
+def weakly_seen(model: ChainsModel, at: AtStart, flush: ChainsData) -> dict[str, float]:
     """The fitted directions the always-free columns nearly span, each with the share left.
 
     The share: the norm of a direction's column at the registration (``flush`` rows) once
     projected off the objects', contact frames' and instrument frames' columns, over its
-    norm. None for a fit by block (no dense Jacobian).
+    norm. The columns are those of :func:`choose`'s Jacobian ``at`` (made once: the rank
+    test's, where the rows are the same). None for a fit by block (no dense Jacobian).
     """
-    end = model.fixed + len(model.free)
-    if by_block(model, start) or end == model.fixed:
+    wide, end = at.wide, model.fixed + len(model.free)
+    if by_block(model, at.start) or end == model.fixed:
         return {}
-    A = AtStart(model, start)(flush).reshape(-1, model.size())
+    offered = {f: wide.fixed + k for k, f in enumerate(wide.free)}
+    columns = [*range(model.fixed), *(offered[f] for f in model.free)]
+    A = at(flush).reshape(-1, wide.size())[:, columns]
     U, s, _ = np.linalg.svd(A[:, : model.fixed], full_matrices=False)
     U = U[:, s > s[0] * 1e-10] if s.size else U
     names, out = model.names(), {}
@@ -305,15 +308,15 @@ def choose(
     generic=None,
     kept_out: list[int] | None = None,
 ):
-    """The model, the start's kinematics at ``data``, ``auto``'s selection, the prior weights.
+    """The model, the start's Jacobians (:class:`AtStart`), ``auto``'s selection, the priors.
 
-    The kinematics: None for a fit by block. ``comp``: the joints whose compliance is offered;
-    ``asked``: a measured chain's ``fix`` and ``free`` (:class:`~.measured_options.Asked`), or
-    None; ``generic``: the generic configurations of terms measured by an instrument
-    (:class:`~.chain_counts.Generic`), or None; ``kept_out``: filled with the columns the
-    data determine, as ``notes`` with remarks.
+    The model's kinematics at ``data``: ``at.kinematics(data)`` (a fit by block: none).
+    ``comp``: the joints whose compliance is offered; ``asked``: a measured chain's ``fix`` and
+    ``free`` (:class:`~.measured_options.Asked`), or None; ``generic``: the generic
+    configurations of terms measured by an instrument (:class:`~.chain_counts.Generic`), or
+    None; ``kept_out``: filled with the columns the data determine, as ``notes`` with remarks.
     """
-    train, rows = list(data.parts), data
+    train = list(data.parts)
     directions, names, offered = _offer_directions(start, level)
     forced: tuple[str, ...] = ()
     if asked is not None:
@@ -348,8 +351,7 @@ def choose(
     if prior is not None:  # the model's order: the directions, then the compliances
         order = [c for c in columns if c < split] + [c for c in columns if c >= split]
         prior = np.r_[np.zeros(fixed), prior[fixed:][[columns.index(c) for c in order]]]
-    kin = None if by_block(model, start) else at.kinematics(rows)
-    return model, kin, selection, prior
+    return model, at, selection, prior
 
 
 def _auto(wide: ChainsModel, start: ChainsState, at_data: tuple, columns: list, asked: tuple):

@@ -192,9 +192,10 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
         flush = flush if load is not None or not comp else ChainsData(flush.parts, torques[:1])
         generic = Generic(start, tuple(train), opts.seed) if instrument else None
         kept: list[int] = []
-        model, kin, selection, prior = choose(
+        model, at, selection, prior = choose(
             start, rows, flush, plane_of, offer, notes, comp, asked, generic, kept
         )
+        kin = None if by_block(model, start) else at.kinematics(rows)
         names = start.placements.names()
         wide = chains_model(start, plane_of, range(len(names)), names, None, comp)
         if instrument and len(chains) == 1:  # its MDH directions span what it sees
@@ -223,7 +224,7 @@ def fit_registered(r: Registered) -> ContactChainsCalibration:
             f"data cannot separate {' and '.join(weak.names)} (condition {weak.condition:.3g} "
             f"of the fitted unknowns, over {ILL_CONDITION:g})"
         )
-    barely = weakly_seen(model, start, flush) if result.accepted else {}
+    barely = weakly_seen(model, at, flush) if result.accepted else {}
     return _finished(r, result, converged, identifiable, barely)
 
 
