@@ -222,14 +222,15 @@ def flush_data(start: ChainsState, train, load: StandingLoad | None) -> ChainsDa
 class AtStart:
     """A model's Jacobian at the registration (``x = 0``), made once for the same rows.
 
-    The rank test and the selection share the Jacobian, the fit its kinematics too. The
-    arrays returned are shared: read only.
+    The rank test and the selection share the Jacobian, the fit its kinematics too, and
+    :func:`weakly_seen` the rank test's (the last two rows' are kept: touches are tested at
+    flush postures, selected at their own). The arrays returned are shared: read only.
     """
 
     def __init__(self, wide: ChainsModel, start: ChainsState) -> None:
         self.wide, self.start = wide, start
         self._kin: tuple[ChainsData, tuple[JointFrames, ...]] | None = None
-        self._last: tuple[ChainsData, np.ndarray] | None = None
+        self._last: list[tuple[ChainsData, np.ndarray]] = []  # the two last rows' (flush, data)
 
     def kinematics(self, data: ChainsData) -> tuple[JointFrames, ...]:
         """The registration's kinematics at the rows ``data``."""
@@ -239,12 +240,13 @@ class AtStart:
 
     def __call__(self, data: ChainsData) -> np.ndarray:
         """The Jacobian ``(m, rows, size)`` at the rows ``data``."""
-        if self._last is not None and same_rows(self._last[0], data):
-            return self._last[1]
+        for rows, J in self._last:
+            if same_rows(rows, data):
+                return J
         x = np.zeros(self.wide.size())
         state = self.wide.apply(self.start, x)  # the registration's geometry (x = 0)
         J = self.wide.jacobian(self.start, x, data, None, state, self.kinematics(data))
-        self._last = (data, J)
+        self._last = [*self._last[-1:], (data, J)]
         return J
 
 
