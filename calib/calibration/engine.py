@@ -244,15 +244,9 @@ def _finished(r: Registered, result, converged: list[bool], identifiable: int, b
     few = [few_postures(h, "the held-out verdict rests on") for h in r.held if h is not None]
     far = turned_far(result) if result.accepted else None
     missed = _above_noise(result, opts.noise)
-    unseen_moves = moved_unseen(result, barely)
-    notes = [
-        nothing_fitted(result, bool(opts.fix)),
-        far,
-        unseen_moves,
-        missed,
-        nothing_held(result),
-    ]
-    added = [n for n in (*notes, *few) if n]
+    unseen, held = moved_unseen(result, barely), nothing_held(result)
+    notes = (nothing_fitted(result, bool(opts.fix)), far, unseen, missed, held, *few)
+    added = [n for n in notes if n]
     return dataclasses.replace(result, notes=(*result.notes, *added)) if added else result
 
 
