@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from test_report import TOP  # the format-3 top-level keys, in their order
 
 from calib import InvalidArgumentError, from_chain, load_calibrated, load_chain
 from calib.calibration.model import State
@@ -423,31 +424,7 @@ POSE = ("xyz", "rpy", "matrix")
 MDH = ("name", "joint", "sigma", "sign", "beta", "alpha", "d", "theta", "r", "y")
 GROUPS = ("registration", "calibrated", "urdf")
 
-FORMAT3_KEYS = {
-    "format_version",
-    "deprecated",
-    "robot",
-    "urdf",
-    "shape",
-    "terms",
-    "params",
-    "accepted",
-    "refusal",
-    "converged",
-    "message",
-    "iterations",
-    "parameters",
-    "errors",
-    "frames",
-    "objects",
-    "fit",
-    "model_choice",
-    "outliers",
-    "compliance",
-    "model",
-    "warnings",
-    "timings_ms",
-}
+FORMAT3_KEYS = set(TOP)
 """Every report's top-level keys (format 3), whatever the shape and kind."""
 
 CHAIN_REPORT_KEYS = {
